@@ -1,0 +1,60 @@
+"""Typed, validated configuration files (TOML + pydantic) with one-line errors."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import TypeVar
+
+import pydantic
+
+from .errors import RfsdfError
+
+__all__ = ["StrictModel", "read_toml", "validate", "load_model"]
+
+Model = TypeVar("Model", bound=pydantic.BaseModel)
+
+
+class StrictModel(pydantic.BaseModel):
+    """Base of every config model: unknown keys are errors (they are usually typos)."""
+
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
+
+
+def read_toml(path) -> dict:
+    """Parse a TOML file; RfsdfError naming the file and line on failure."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise RfsdfError(f"{path}: file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RfsdfError(f"{path}: invalid TOML: {exc}") from None
+
+
+def _field_path(loc: tuple) -> str:
+    parts = []
+    for item in loc:
+        if isinstance(item, int):
+            parts.append(f"[{item}]")
+        else:
+            parts.append(("." if parts else "") + str(item))
+    return "".join(parts)
+
+
+def validate(model: type[Model], data: dict, source: str) -> Model:
+    """Validate ``data`` against ``model``; the first problem becomes 'source: field: reason'."""
+    try:
+        return model.model_validate(data)
+    except pydantic.ValidationError as exc:
+        err = exc.errors(include_url=False)[0]
+        # Drop the tags pydantic adds for tagged unions (e.g. 'sphere') so paths read as the file does.
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.endswith("]")))
+        message = err["msg"].removeprefix("Value error, ")
+        raise RfsdfError(f"{source}: {_field_path(loc) or '(top level)'}: {message}") from None
+
+
+def load_model(model: type[Model], path) -> Model:
+    """Read and validate a TOML file in one step."""
+    return validate(model, read_toml(path), str(path))

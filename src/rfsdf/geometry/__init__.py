@@ -1,0 +1,28 @@
+"""Analytic signed distance functions, CSG, transforms, mesh SDFs, sphere tracing, occupancy.
+
+Every SDF is a callable ``f(points) -> (N,)`` on (N, 3) torch tensors [m] that works
+with autograd; f < 0 inside, f > 0 outside.
+"""
+
+from .base import SDF, as_points
+from .csg import (
+    Complement, Intersection, SmoothIntersection, SmoothUnion, Union,
+    complement, difference, intersection, smooth_intersection, smooth_union, union,
+)
+from .differential import eikonal_residual, gradient, normals
+from .grid import Grid
+from .mesh_sdf import MeshSDF, load_watertight_mesh
+from .occupancy import occupancy
+from .primitives import Box, CappedCylinder, Capsule, Cylinder, HalfSpace, Sphere, Torus
+from .tracing import TraceResult, sphere_trace
+from .transforms import Rotate, Scale, Translate, rotation_matrix
+
+__all__ = [
+    "SDF", "as_points", "Grid",
+    "Sphere", "Box", "HalfSpace", "Cylinder", "CappedCylinder", "Torus", "Capsule", "MeshSDF",
+    "load_watertight_mesh",
+    "Union", "Intersection", "Complement", "SmoothUnion", "SmoothIntersection",
+    "union", "intersection", "complement", "difference", "smooth_union", "smooth_intersection",
+    "Translate", "Rotate", "Scale", "rotation_matrix",
+    "gradient", "normals", "eikonal_residual", "occupancy", "sphere_trace", "TraceResult",
+]

@@ -1,0 +1,59 @@
+"""Rigid transforms and uniform scaling of SDFs (distance-preserving, so exactness is kept)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from .base import SDF, _param, as_vector
+
+__all__ = ["Translate", "Rotate", "Scale", "rotation_matrix"]
+
+
+def rotation_matrix(axis, angle_rad: float) -> torch.Tensor:
+    """(3, 3) float64 rotation about ``axis`` by ``angle_rad`` [rad] (Rodrigues, right-handed)."""
+    a = as_vector(axis, "axis")
+    norm = torch.linalg.norm(a)
+    if norm < 1e-12:
+        raise ValueError("rotation axis must be a non-zero vector")
+    x, y, z = (a / norm).tolist()
+    k = torch.tensor([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]], dtype=torch.float64)
+    return torch.eye(3, dtype=torch.float64) + math.sin(angle_rad) * k + (1 - math.cos(angle_rad)) * (k @ k)
+
+
+class Translate(SDF):
+    """``shape`` moved by ``offset_m`` (3,) [m]: f(p - t)."""
+
+    def __init__(self, shape: SDF, offset_m):
+        self.shape, self.offset = shape, as_vector(offset_m, "offset")
+        self.exact = shape.exact
+
+    def _evaluate(self, points):
+        return self.shape(points - _param(self.offset, points))
+
+
+class Rotate(SDF):
+    """``shape`` rotated by R about the origin: f(R^T p)."""
+
+    def __init__(self, shape: SDF, axis, angle_rad: float):
+        self.shape, self.matrix = shape, rotation_matrix(axis, float(angle_rad))
+        self.exact = shape.exact
+
+    def _evaluate(self, points):
+        # (R^T p) for row vectors is p @ R.
+        return self.shape(points @ _param(self.matrix, points))
+
+
+class Scale(SDF):
+    """``shape`` scaled by ``factor`` about the origin: s * f(p / s)."""
+
+    def __init__(self, shape: SDF, factor: float):
+        factor = float(factor)
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"scale factor must be positive, got {factor}")
+        self.shape, self.factor = shape, factor
+        self.exact = shape.exact
+
+    def _evaluate(self, points):
+        return self.factor * self.shape(points / self.factor)

@@ -1,0 +1,243 @@
+"""Scenes: objects (an SDF and a material each) inside bounds; loading, presets, surface sampling.
+
+A scene is loaded from a TOML file (see :mod:`rfsdf.scene_spec`) or a preset name
+(``objects``, ``l-room``, ``sphere``; the files live in ``examples/scenes``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+
+from . import geometry as geo
+from .config import read_toml, validate
+from .errors import RfsdfError
+from .geometry.differential import gradient
+from .materials import Material
+from .mesh import extract_mesh
+from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
+
+__all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_presets", "build_shape"]
+
+_MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
+_COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
+_NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
+
+
+def scene_presets() -> list[str]:
+    """Names of the built-in scenes."""
+    return sorted(p.name.removesuffix(".toml") for p in resources.files("rfsdf.presets.scenes").iterdir()
+                  if p.name.endswith(".toml"))
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One object: its name, SDF (scene frame, metres), material and, for mesh objects, the mesh."""
+
+    name: str
+    sdf: geo.SDF
+    material: Material
+    mesh: trimesh.Trimesh | None = None
+
+
+@dataclass(frozen=True)
+class SurfaceSamples:
+    """Points on the scene surface (N samples).
+
+    points : (N, 3) float32 [m]; normals : (N, 3) outward unit; area_m2 : (N,) area each
+    sample stands for [m^2]; object_index : (N,) int64 into ``Scene.objects``.
+    """
+
+    points: torch.Tensor
+    normals: torch.Tensor
+    area_m2: torch.Tensor
+    object_index: torch.Tensor
+
+
+def _vec(v) -> torch.Tensor:
+    return torch.as_tensor(v, dtype=torch.float64)
+
+
+def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
+    path = Path(spec.path)
+    path = path if path.is_absolute() else base_dir / path
+    mesh = geo.load_watertight_mesh(path)
+    if spec.size_m is not None:
+        mesh.apply_scale(spec.size_m / float(mesh.extents.max()))
+    if spec.center_m is not None:
+        mesh.apply_translation(np.asarray(spec.center_m) - mesh.bounds.mean(axis=0))
+    return geo.MeshSDF(mesh)
+
+
+def build_shape(spec, base_dir: Path = Path(".")) -> geo.SDF:
+    """The SDF described by a shape table (recursively for CSG), with its transform applied."""
+    t = spec.type
+    if t == "sphere":
+        sdf = geo.Sphere(spec.radius_m, spec.center_m)
+    elif t == "box":
+        sdf = geo.Box(spec.half_extents_m, spec.center_m)
+    elif t == "halfspace":
+        sdf = geo.HalfSpace(spec.normal, spec.offset_m)
+    elif t == "cylinder":
+        sdf = geo.Cylinder(spec.radius_m, spec.axis, spec.point_m)
+    elif t == "capped_cylinder":
+        sdf = geo.CappedCylinder(spec.radius_m, spec.height_m, spec.axis, spec.center_m)
+    elif t == "torus":
+        sdf = geo.Torus(spec.major_radius_m, spec.minor_radius_m, spec.axis, spec.center_m)
+    elif t == "capsule":
+        sdf = geo.Capsule(spec.start_m, spec.end_m, spec.radius_m)
+    elif t == "mesh":
+        sdf = _mesh_shape(spec, base_dir)
+    elif isinstance(spec, CSGSpec):
+        children = [build_shape(c, base_dir) for c in spec.children]
+        combine = {
+            "union": geo.union, "intersection": geo.intersection, "difference": geo.difference,
+            "smooth_union": lambda *c: geo.smooth_union(*c, blend_m=spec.blend_m),
+            "smooth_intersection": lambda *c: geo.smooth_intersection(*c, blend_m=spec.blend_m),
+        }[t]
+        sdf = combine(*children)
+    else:  # pragma: no cover - the spec's discriminator admits nothing else
+        raise AssertionError(t)
+    tf = spec.transform
+    if tf is not None:
+        if tf.scale != 1.0:
+            sdf = sdf.scale(tf.scale)
+        if tf.rotate_rad != 0.0:
+            sdf = sdf.rotate(tf.rotate_axis, tf.rotate_rad)
+        if any(tf.translate_m):
+            sdf = sdf.translate(tf.translate_m)
+    return sdf
+
+
+class Scene:
+    """Objects inside axis-aligned bounds; the scene SDF is the union of the objects'."""
+
+    def __init__(self, spec: SceneSpec, base_dir: Path = Path(".")):
+        self.spec = spec
+        self.name = spec.name
+        self.lower_m = np.asarray(spec.bounds.lower_m, dtype=float)
+        self.upper_m = np.asarray(spec.bounds.upper_m, dtype=float)
+        self.objects: list[SceneObject] = []
+        for obj in spec.objects:
+            sdf = build_shape(obj.shape, base_dir)
+            mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and obj.shape.transform is None else None
+            self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh))
+        self._meshes: list[trimesh.Trimesh] | None = None
+
+    # Fields -------------------------------------------------------------------------
+    def sdf(self, points: torch.Tensor) -> torch.Tensor:
+        """Scene SDF (N,) [m] at ``points`` (N, 3) [m]: min over objects, differentiable."""
+        return self._object_values(points).min(dim=0).values
+
+    def object_index(self, points: torch.Tensor) -> torch.Tensor:
+        """(N,) int64 index of the object nearest to (or containing) each point."""
+        with torch.no_grad():
+            return self._object_values(points).argmin(dim=0)
+
+    def material_at(self, points: torch.Tensor) -> list[Material]:
+        """The material of the nearest object at each point, a list of N Materials."""
+        return [self.objects[i].material for i in self.object_index(points).tolist()]
+
+    def _object_values(self, points):
+        points = geo.as_points(points)
+        return torch.stack([o.sdf(points) for o in self.objects], dim=0)
+
+    @property
+    def extent_m(self) -> np.ndarray:
+        """(3,) size of the bounds [m]."""
+        return self.upper_m - self.lower_m
+
+    # Meshes and sampling -------------------------------------------------------------
+    def object_meshes(self) -> list[trimesh.Trimesh]:
+        """One watertight mesh per object (the file's for mesh objects, marching cubes otherwise)."""
+        if self._meshes is None:
+            self._meshes = [o.mesh if o.mesh is not None else self._mesh_of(o) for o in self.objects]
+        return self._meshes
+
+    def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
+        coarse = geo.Grid.from_voxel(self.lower_m, self.upper_m, float(self.extent_m.max()) / _COARSE_RESOLUTION)
+        pts = coarse.points(dtype=torch.float64)
+        with torch.no_grad():
+            near = obj.sdf(pts) < np.linalg.norm(coarse.voxel_m)
+        if not near.any():
+            raise RfsdfError(f"scene {self.name!r}: object {obj.name!r} lies outside the bounds")
+        pad = 2 * coarse.voxel_m
+        lower = np.maximum(pts[near].min(0).values.numpy() - pad, self.lower_m - pad)
+        upper = np.minimum(pts[near].max(0).values.numpy() + pad, self.upper_m + pad)
+        sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface
+        return extract_mesh(sdf64, lower, upper, _MESH_RESOLUTION)
+
+    def ground_truth_mesh(self) -> trimesh.Trimesh:
+        """All object meshes in one (objects are expected not to overlap)."""
+        return trimesh.util.concatenate(self.object_meshes())
+
+    def sample_surface(self, spacing_m: float, *, seed: int = 0, max_samples: int | None = None) -> SurfaceSamples:
+        """Random area-uniform samples of every object's surface, about ``spacing_m`` [m] apart.
+
+        Analytic surfaces are sampled on their mesh and projected onto the exact zero set
+        by Newton steps; normals come from grad f. Samples buried inside another object
+        are dropped. With ``max_samples`` the spacing grows so that the count fits.
+        """
+        if not spacing_m > 0:
+            raise ValueError(f"spacing_m must be positive, got {spacing_m}")
+        meshes = self.object_meshes()
+        total_area = sum(m.area for m in meshes)
+        if max_samples is not None:
+            spacing_m = max(spacing_m, float(np.sqrt(total_area / max_samples)))
+        rng = np.random.default_rng(seed)
+        parts = []
+        for index, (obj, mesh) in enumerate(zip(self.objects, meshes)):
+            count = max(1, int(round(mesh.area / spacing_m**2)))
+            pts, faces = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
+            p = torch.as_tensor(pts, dtype=torch.float64)
+            if obj.mesh is None:
+                for _ in range(_NEWTON_STEPS):
+                    g = gradient(obj.sdf, p)
+                    p = p - (obj.sdf(p) / (g * g).sum(1).clamp(min=1e-12))[:, None] * g
+                n = torch.nn.functional.normalize(gradient(obj.sdf, p), dim=1)
+            else:
+                n = torch.as_tensor(mesh.face_normals[faces], dtype=torch.float64)
+            parts.append((p, n, torch.full((count,), mesh.area / count, dtype=torch.float64), index))
+        points = torch.cat([p for p, *_ in parts])
+        keep = torch.ones(len(points), dtype=torch.bool)
+        if len(self.objects) > 1:
+            with torch.no_grad():
+                keep = self.sdf(points) > -0.25 * spacing_m
+        return SurfaceSamples(
+            points=points[keep].float(),
+            normals=torch.cat([n for _, n, *_ in parts])[keep].float(),
+            area_m2=torch.cat([a for _, _, a, _ in parts])[keep].float(),
+            object_index=torch.cat([torch.full((len(p),), i) for p, _, _, i in parts])[keep],
+        )
+
+    def summary(self) -> str:
+        """A few lines describing the scene for people."""
+        lines = [f"scene {self.name!r}: bounds {self.lower_m.tolist()} .. {self.upper_m.tolist()} m, "
+                 f"{len(self.objects)} object(s)"]
+        for obj, spec in zip(self.objects, self.spec.objects):
+            eps = obj.material.permittivity(79e9) if obj.material.valid_ghz[0] <= 79 <= obj.material.valid_ghz[1] else None
+            eps_text = "PEC" if obj.material.pec else (f"eps(79 GHz)={eps.real:.2f}{eps.imag:+.2f}j" if eps else "")
+            lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
+                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}")
+        return "\n".join(lines)
+
+
+def load_scene(name_or_path) -> Scene:
+    """A scene from a preset name or a TOML file; RfsdfError 'file: field: reason' on bad input."""
+    text = str(name_or_path)
+    if text in scene_presets():
+        path = Path(str(resources.files("rfsdf.presets.scenes") / f"{text}.toml"))
+    else:
+        path = Path(text)
+        if not path.exists():
+            raise RfsdfError(f"{text}: no such scene file or preset (presets: {', '.join(scene_presets())})")
+    spec = validate(SceneSpec, read_toml(path), str(path))
+    try:
+        return Scene(spec, base_dir=path.parent)
+    except ValueError as exc:
+        raise RfsdfError(f"{path}: {exc}") from None

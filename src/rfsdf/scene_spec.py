@@ -1,0 +1,180 @@
+"""The TOML scene format, as pydantic models: what a scene file may say and how it is checked.
+
+A scene file has a ``name``, ``[bounds]`` (lower_m, upper_m), optional custom
+``[[materials]]`` and a list of ``[[objects]]``, each with a ``name``, a ``material``
+and a ``shape`` table whose ``type`` picks a primitive, a mesh file or a CSG node.
+Every shape may carry a ``transform`` (translate_m, rotate_axis, rotate_rad, scale).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, PositiveFloat, field_validator, model_validator
+
+from .config import StrictModel
+from .materials import Material, get_material
+
+__all__ = ["SceneSpec", "ObjectSpec", "ShapeSpec", "MaterialSpec", "BoundsSpec", "TransformSpec"]
+
+Vec3 = tuple[float, float, float]
+PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
+
+
+class TransformSpec(StrictModel):
+    """Applied in the order scale, rotate, translate (all about the origin)."""
+
+    translate_m: Vec3 = (0.0, 0.0, 0.0)
+    rotate_axis: Vec3 = (0.0, 0.0, 1.0)
+    rotate_rad: float = 0.0
+    scale: PositiveFloat = 1.0
+
+
+class _Shape(StrictModel):
+    transform: TransformSpec | None = None
+
+
+class SphereSpec(_Shape):
+    type: Literal["sphere"]
+    radius_m: PositiveFloat
+    center_m: Vec3 = (0.0, 0.0, 0.0)
+
+
+class BoxSpec(_Shape):
+    type: Literal["box"]
+    half_extents_m: PositiveVec3
+    center_m: Vec3 = (0.0, 0.0, 0.0)
+
+
+class HalfSpaceSpec(_Shape):
+    type: Literal["halfspace"]
+    normal: Vec3
+    offset_m: float = 0.0
+
+
+class CylinderSpec(_Shape):
+    type: Literal["cylinder"]
+    radius_m: PositiveFloat
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    point_m: Vec3 = (0.0, 0.0, 0.0)
+
+
+class CappedCylinderSpec(_Shape):
+    type: Literal["capped_cylinder"]
+    radius_m: PositiveFloat
+    height_m: PositiveFloat
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    center_m: Vec3 = (0.0, 0.0, 0.0)
+
+
+class TorusSpec(_Shape):
+    type: Literal["torus"]
+    major_radius_m: PositiveFloat
+    minor_radius_m: PositiveFloat
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    center_m: Vec3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _radii(self):
+        if self.minor_radius_m >= self.major_radius_m:
+            raise ValueError("minor_radius_m must be smaller than major_radius_m")
+        return self
+
+
+class CapsuleSpec(_Shape):
+    type: Literal["capsule"]
+    start_m: Vec3
+    end_m: Vec3
+    radius_m: PositiveFloat
+
+
+class MeshShapeSpec(_Shape):
+    """A watertight mesh file (path relative to the scene file), scaled so that its
+    largest bounding-box edge is ``size_m`` and its bounding-box centre is ``center_m``."""
+
+    type: Literal["mesh"]
+    path: str
+    size_m: PositiveFloat | None = None
+    center_m: Vec3 | None = None
+
+
+class CSGSpec(_Shape):
+    type: Literal["union", "intersection", "difference", "smooth_union", "smooth_intersection"]
+    children: list[ShapeSpec] = Field(min_length=2)
+    blend_m: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _blend(self):
+        if self.type.startswith("smooth") and self.blend_m is None:
+            raise ValueError(f"{self.type} needs blend_m")
+        return self
+
+
+ShapeSpec = Annotated[
+    Union[SphereSpec, BoxSpec, HalfSpaceSpec, CylinderSpec, CappedCylinderSpec, TorusSpec,
+          CapsuleSpec, MeshShapeSpec, CSGSpec],
+    Field(discriminator="type"),
+]
+CSGSpec.model_rebuild()
+
+
+class MaterialSpec(StrictModel):
+    """A custom material: constant relative permittivity and conductivity [S/m]."""
+
+    name: str
+    permittivity: float = Field(ge=1.0)
+    conductivity_s_per_m: float = Field(default=0.0, ge=0.0)
+
+    def build(self) -> Material:
+        return Material.from_permittivity(self.name, self.permittivity, self.conductivity_s_per_m)
+
+
+class BoundsSpec(StrictModel):
+    lower_m: Vec3
+    upper_m: Vec3
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if not all(lo < hi for lo, hi in zip(self.lower_m, self.upper_m)):
+            raise ValueError(f"lower_m {list(self.lower_m)} must be below upper_m {list(self.upper_m)} on every axis")
+        return self
+
+
+class ObjectSpec(StrictModel):
+    name: str
+    material: str
+    shape: ShapeSpec
+
+
+class SceneSpec(StrictModel):
+    name: str
+    bounds: BoundsSpec
+    materials: list[MaterialSpec] = []
+    objects: list[ObjectSpec] = Field(min_length=1)
+
+    @field_validator("objects")
+    @classmethod
+    def _unique_names(cls, objects):
+        names = [o.name for o in objects]
+        duplicated = sorted({n for n in names if names.count(n) > 1})
+        if duplicated:
+            raise ValueError(f"object names must be unique, repeated: {', '.join(duplicated)}")
+        return objects
+
+    @model_validator(mode="after")
+    def _known_materials(self):
+        custom = {m.name for m in self.materials}
+        for obj in self.objects:
+            if obj.material not in custom:
+                try:
+                    get_material(obj.material)
+                except ValueError as exc:
+                    raise ValueError(f"object {obj.name!r}: {exc} (or define it under [[materials]])") from None
+        return self
+
+    def material(self, name: str) -> Material:
+        """The Material called ``name``: a custom one from this file, else the catalogue's."""
+        for spec in self.materials:
+            if spec.name == name:
+                return spec.build()
+        return get_material(name)

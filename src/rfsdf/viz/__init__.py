@@ -1,0 +1,5 @@
+"""Figures: SDF slices, matched-filter projections, training curves, and the report."""
+
+from .slices import plot_sdf_slices
+
+__all__ = ["plot_sdf_slices"]

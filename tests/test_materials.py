@@ -1,0 +1,80 @@
+"""Fresnel and permittivity against closed forms."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from rfsdf.materials import (
+    Material, brewster_angle, estimate_permittivity, fresnel, get_material, reflectance,
+)
+
+
+@pytest.mark.parametrize("eps", [2.0, 4.0, 6.31 - 0.29j])
+def test_normal_incidence_closed_form(eps):
+    expected = (1 - np.sqrt(eps)) / (1 + np.sqrt(eps))
+    assert complex(fresnel(0.0, eps, "TE")) == pytest.approx(expected, abs=1e-12)
+    assert complex(fresnel(0.0, eps, "TM")) == pytest.approx(-expected, abs=1e-12)  # design's TM sign
+    assert float(reflectance(0.0, eps, "mean")) == pytest.approx(abs(expected) ** 2, abs=1e-12)
+
+
+@pytest.mark.parametrize("eps", [2.0, 5.24, 9.0])
+def test_brewster_angle_zeroes_tm(eps):
+    theta_b = brewster_angle(eps)
+    assert theta_b == pytest.approx(math.atan(math.sqrt(eps)))
+    assert float(reflectance(theta_b, eps, "TM")) < 1e-25
+    thetas = torch.linspace(0, 1.5, 1501, dtype=torch.float64)
+    assert float(thetas[reflectance(thetas, eps, "TM").argmin()]) == pytest.approx(theta_b, abs=1e-3)
+
+
+def test_pec_reflects_fully_at_every_angle():
+    thetas = torch.linspace(0, 1.56, 20, dtype=torch.float64)
+    for pol in ("TE", "TM", "mean"):
+        torch.testing.assert_close(fresnel(thetas, math.inf, pol).abs(), torch.ones(20, dtype=torch.float64))
+    assert get_material("metal").pec and math.isinf(get_material("metal").permittivity(79e9).real)
+
+
+def test_grazing_incidence_reflects_fully_for_lossy_media():
+    for pol in ("TE", "TM"):
+        assert float(reflectance(math.pi / 2, 5.24 - 0.3j, pol)) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_lossy_reflectance_matches_independent_numpy_derivation():
+    eps, theta = 5.24 - 0.32j, 0.6
+    kz1, kz2 = np.cos(theta), np.sqrt(eps - np.sin(theta) ** 2 + 0j)
+    te = (kz1 - kz2) / (kz1 + kz2)
+    tm = (eps * kz1 - kz2) / (eps * kz1 + kz2)
+    assert complex(fresnel(theta, eps, "TE")) == pytest.approx(te)
+    assert complex(fresnel(theta, eps, "TM")) == pytest.approx(tm)
+    assert kz2.imag < 0  # decaying branch for the exp(+j w t) convention
+
+
+def test_itu_catalogue_values():
+    concrete = get_material("concrete").permittivity(79e9)
+    sigma = 0.0462 * 79**0.7822
+    assert concrete.real == pytest.approx(5.24)
+    assert -concrete.imag == pytest.approx(17.98 * sigma / 79, rel=1e-3)  # eps'' = 17.98 sigma / f_GHz
+    assert get_material("drywall") is get_material("plasterboard")
+    with pytest.raises(ValueError, match="outside"):
+        get_material("brick").permittivity(79e9)  # ITU gives brick only up to 40 GHz
+    with pytest.raises(ValueError, match="unknown material"):
+        get_material("unobtainium")
+    assert Material.from_permittivity("teflon", 2.1).permittivity(79e9) == 2.1
+
+
+@pytest.mark.parametrize("pol", ["TE", "TM"])
+def test_permittivity_recovered_from_synthetic_reflectances(pol):
+    thetas = np.array([0.1, 0.5, 0.9])
+    measured = reflectance(torch.as_tensor(thetas), 4.7, pol).numpy()
+    result = estimate_permittivity(thetas, measured, pol)
+    assert result.eps_real == pytest.approx(4.7, rel=1e-5)
+
+
+def test_permittivity_estimate_rejects_inconsistent_data():
+    with pytest.raises(ValueError, match="no permittivity"):
+        estimate_permittivity([0.1, 0.8], [0.9, 0.01], "TE")  # TE reflectance grows with angle
+    with pytest.raises(ValueError, match=">= 2 angles"):
+        estimate_permittivity([0.1], [0.1])
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        estimate_permittivity([0.1, 0.2], [0.1, 1.5])

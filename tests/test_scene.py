@@ -1,0 +1,91 @@
+"""Scenes: presets, sampling, materials, and one-line errors for bad files."""
+
+import math
+
+import pytest
+import torch
+
+from rfsdf.errors import RfsdfError
+from rfsdf.scene import load_scene, scene_presets
+
+
+def test_presets_exist_and_load():
+    assert {"objects", "l-room", "sphere"} <= set(scene_presets())
+    objects = load_scene("objects")
+    sizes = [m.extents.max() for m in objects.object_meshes()]
+    assert all(0.03 <= s <= 0.1 + 1e-3 for s in sizes)
+    assert len({o.material.name for o in objects.objects}) >= 4
+
+
+def test_sphere_scene_surface_sampling_is_exact():
+    scene = load_scene("sphere")
+    samples = scene.sample_surface(0.002, seed=1)
+    r = samples.points.norm(dim=1)
+    torch.testing.assert_close(r, torch.full_like(r, 0.02), atol=1e-6, rtol=0)
+    torch.testing.assert_close(samples.normals, samples.points / r[:, None], atol=1e-5, rtol=0)
+    assert samples.area_m2.sum().item() == pytest.approx(4 * math.pi * 0.02**2, rel=5e-3)
+    assert len(samples.points) == pytest.approx(4 * math.pi * 0.02**2 / 0.002**2, rel=0.01)
+
+
+def test_sampling_is_reproducible_and_respects_max_samples():
+    scene = load_scene("objects")
+    a, b = scene.sample_surface(0.004, seed=3), scene.sample_surface(0.004, seed=3)
+    torch.testing.assert_close(a.points, b.points)
+    assert len(scene.sample_surface(0.001, max_samples=2000).points) <= 2100
+
+
+def test_material_at_and_sdf():
+    scene = load_scene("objects")
+    ball = torch.tensor([[0.05, 0.05, 0.0]])
+    assert scene.material_at(ball)[0].name == "metal"
+    assert scene.sdf(ball).item() == pytest.approx(-0.025)
+
+
+def test_mesh_object_in_scene(tmp_path, spot_path):
+    (tmp_path / "cow.toml").write_text(f"""
+name = "cow"
+[bounds]
+lower_m = [-0.1, -0.1, -0.1]
+upper_m = [0.1, 0.1, 0.1]
+[[objects]]
+name = "spot"
+material = "wood"
+shape = {{ type = "mesh", path = "{spot_path}", size_m = 0.1, center_m = [0.0, 0.0, 0.0] }}
+""")
+    scene = load_scene(tmp_path / "cow.toml")
+    assert scene.object_meshes()[0].extents.max() == pytest.approx(0.1)
+    assert scene.sdf(torch.zeros(1, 3)).item() < 0
+    samples = scene.sample_surface(0.003)
+    assert scene.sdf(samples.points.double()).abs().max().item() < 1e-6
+
+
+BAD_SCENES = {
+    "radius": ('shape = { type = "sphere", radius_m = -0.1 }', r"objects\[0\]\.shape.*radius_m.*greater than 0"),
+    "material": ('material = "unobtainium"\nshape = { type = "sphere", radius_m = 0.1 }', "unknown material"),
+    "type": ('shape = { type = "blob", radius_m = 0.1 }', r"objects\[0\]\.shape.*blob"),
+    "typo": ('shape = { type = "sphere", radius = 0.1 }', "radius"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_SCENES)
+def test_bad_scene_files_give_one_line_errors(tmp_path, case):
+    body, pattern = BAD_SCENES[case]
+    if "material" not in body:
+        body = 'material = "metal"\n' + body
+    path = tmp_path / "bad.toml"
+    path.write_text(f'name = "x"\n[bounds]\nlower_m = [-1, -1, -1]\nupper_m = [1, 1, 1]\n[[objects]]\nname = "a"\n{body}\n')
+    with pytest.raises(RfsdfError, match=pattern) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert message.startswith(str(path)) and "\n" not in message
+
+
+def test_malformed_toml_and_bad_bounds(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("name = \n")
+    with pytest.raises(RfsdfError, match="broken.toml: invalid TOML"):
+        load_scene(path)
+    path.write_text('name = "x"\n[bounds]\nlower_m = [1, 1, 1]\nupper_m = [0, 2, 2]\n'
+                    '[[objects]]\nname="a"\nmaterial="metal"\nshape={type="sphere", radius_m=0.1}\n')
+    with pytest.raises(RfsdfError, match="bounds: lower_m"):
+        load_scene(path)
