@@ -55,17 +55,100 @@ def scene_show(name_or_file: str, out: Path | None):
     click.echo(f"wrote {out}")
 
 
+def _simulate(scene_name: str, radar_name: str, seed: int):
+    from .radar import check_radar_for_scene, load_radar, simulate
+    from .scene import load_scene
+
+    sc, rad = load_scene(scene_name), load_radar(radar_name)
+    check_radar_for_scene(rad, sc.lower_m, sc.upper_m, source=radar_name)
+    click.echo(sc.summary())
+    click.echo(rad.summary())
+    return sc, simulate(sc, rad, seed=seed, progress=True)
+
+
+def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path):
+    from .geometry import Grid
+    from .radar import matched_filter, write_image
+    from .viz import plot_mip
+
+    grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
+    click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm "
+               f"({measurements.acquisition.num_measurements} measurements)")
+    image = matched_filter(measurements, grid, progress=True)
+    write_image(out_image, image)
+    plot_mip(image.power().numpy(), grid.lower_m, grid.upper_m, out_png, title="matched-filter power (mean over views)")
+    click.echo(f"wrote {out_image} and {out_png}")
+    return image
+
+
+@main.command("simulate")
+@click.argument("scene_name")
+@click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
+@click.option("--seed", default=0, show_default=True)
+@_one_line_errors
+def simulate_cmd(scene_name: str, radar_name: str, out: Path, seed: int):
+    """Simulate radar measurements of a scene and write them to an HDF5 file."""
+    from .radar import write_measurements
+
+    _, measurements = _simulate(scene_name, radar_name, seed)
+    write_measurements(out, measurements)
+    click.echo(f"wrote {out}")
+
+
+@main.command("image")
+@click.argument("data", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Image file (.h5); MIPs go beside it.")
+@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] (default: scene extent / 64).")
+@click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image (default: the one simulated).")
+@_one_line_errors
+def image_cmd(data: Path, out: Path, voxel_m: float | None, scene_name: str | None):
+    """Matched-filter image of a measurements file, plus maximum-intensity projections (PNG)."""
+    from .radar import read_measurements
+    from .scene import load_scene
+
+    measurements = read_measurements(data)
+    name = scene_name or measurements.metadata.get("scene")
+    if name is None:
+        raise ValueError(f"{data}: no scene recorded in the file; pass --scene for the image bounds")
+    sc = load_scene(name)
+    voxel_m = voxel_m or float(sc.extent_m.max()) / 64
+    if not voxel_m > 0:
+        raise ValueError(f"--voxel must be positive, got {voxel_m}")
+    _image(measurements, sc.lower_m, sc.upper_m, voxel_m, out, out.with_suffix(".mip.png"))
+
+
+@main.command("import-fmcw")
+@click.argument("capture", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True)
+@click.option("--conjugate", is_flag=True, help="Flip the IF phase sign (e.g. TI mmWave captures).")
+@_one_line_errors
+def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
+    """Convert a real FMCW capture (layout in the README) into a measurements file."""
+    from .radar import import_fmcw, write_measurements
+
+    write_measurements(out, import_fmcw(capture, conjugate=conjugate))
+    click.echo(f"wrote {out}")
+
+
 @main.command()
 @click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
+@click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("rfsdf-demo"), show_default=True)
+@click.option("--voxel", "voxel_m", type=float, default=0.006, show_default=True, help="Image voxel [m].")
+@click.option("--seed", default=0, show_default=True)
 @_one_line_errors
-def demo(scene_name: str, out: Path):
-    """Run the whole pipeline on the default scene and write every artefact to --out."""
-    from .scene import load_scene
+def demo(scene_name: str, radar_name: str, out: Path, voxel_m: float, seed: int):
+    """Simulate, image and picture the default scene; every artefact goes to --out.
+
+    (Reconstruction, meshing and metrics join this pipeline with the GeRaF fit.)
+    """
+    from .radar import write_measurements
     from .viz import plot_sdf_slices
 
-    sc = load_scene(scene_name)
-    click.echo(sc.summary())
+    sc, measurements = _simulate(scene_name, radar_name, seed)
     path = plot_sdf_slices(sc.sdf, sc.lower_m, sc.upper_m, out / "scene-slices.png",
                            title=f"scene {sc.name!r}: SDF slices")
-    click.echo(f"wrote {path}")
+    write_measurements(out / "measurements.h5", measurements)
+    click.echo(f"wrote {path} and {out / 'measurements.h5'}")
+    _image(measurements, sc.lower_m, sc.upper_m, voxel_m, out / "image.h5", out / "image-mip.png")

@@ -1,5 +1,6 @@
 """Figures: SDF slices, matched-filter projections, training curves, and the report."""
 
+from .projections import plot_mip
 from .slices import plot_sdf_slices
 
-__all__ = ["plot_sdf_slices"]
+__all__ = ["plot_sdf_slices", "plot_mip"]

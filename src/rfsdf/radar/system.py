@@ -1,0 +1,195 @@
+"""A radar system: arrays, frequencies, views, antenna pattern, spreading, noise; TOML files.
+
+A radar file (or preset ``near-77g``, ``room-60g``; see ``examples/radars``) has a
+``[waveform]`` (ofdm or fmcw), an ``[array]`` (boundary, uniform_linear, uniform_planar,
+ti_3tx4rx, optionally scanned as a synthetic aperture), ``[views]`` (turntable rings) and
+``[antenna]`` / ``[noise]`` options.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+from pydantic import Field, PositiveFloat, PositiveInt, model_validator
+
+from ..config import StrictModel, read_toml, validate
+from ..errors import RfsdfError
+from . import arrays, waveform
+from .acquisition import SPEED_OF_LIGHT, Acquisition
+from .views import turntable_views
+
+__all__ = ["Radar", "RadarSpec", "load_radar", "radar_presets"]
+
+
+class WaveformSpec(StrictModel):
+    kind: Literal["ofdm", "fmcw"]
+    carrier_hz: PositiveFloat | None = None
+    bandwidth_hz: PositiveFloat | None = None
+    subcarriers: PositiveInt | None = None
+    start_hz: PositiveFloat | None = None
+    slope_hz_per_s: PositiveFloat | None = None
+    sample_rate_hz: PositiveFloat | None = None
+    samples: PositiveInt | None = None
+
+    @model_validator(mode="after")
+    def _complete(self):
+        need = ("carrier_hz", "bandwidth_hz", "subcarriers") if self.kind == "ofdm" else \
+            ("start_hz", "slope_hz_per_s", "sample_rate_hz", "samples")
+        missing = [n for n in need if getattr(self, n) is None]
+        if missing:
+            raise ValueError(f"{self.kind} waveform needs {', '.join(missing)}")
+        return self
+
+    def frequencies(self) -> np.ndarray:
+        if self.kind == "ofdm":
+            return waveform.ofdm_frequencies(self.carrier_hz, self.bandwidth_hz, self.subcarriers)
+        return waveform.fmcw_frequencies(self.start_hz, self.slope_hz_per_s, self.sample_rate_hz, self.samples)
+
+
+class ArraySpec(StrictModel):
+    kind: Literal["boundary", "uniform_linear", "uniform_planar", "ti_3tx4rx"]
+    size_m: PositiveFloat | None = None  # boundary
+    elements_per_edge: PositiveInt | None = None  # boundary
+    tx_count: PositiveInt | None = None  # uniform_linear
+    rx_count: PositiveInt | None = None  # uniform_linear
+    nx: PositiveInt | None = None  # uniform_planar
+    ny: PositiveInt | None = None  # uniform_planar
+    spacing_m: PositiveFloat | None = None  # uniform_linear, uniform_planar
+    scan_steps: tuple[PositiveInt, PositiveInt] = (1, 1)  # synthetic aperture grid (x, y)
+    scan_step_m: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _complete(self):
+        need = {"boundary": ("size_m", "elements_per_edge"), "uniform_linear": ("tx_count", "rx_count", "spacing_m"),
+                "uniform_planar": ("nx", "ny", "spacing_m"), "ti_3tx4rx": ()}[self.kind]
+        if self.scan_steps != (1, 1):
+            need = (*need, "scan_step_m")
+        missing = [n for n in need if getattr(self, n) is None]
+        if missing:
+            raise ValueError(f"{self.kind} array needs {', '.join(missing)}")
+        return self
+
+    def elements(self, wavelength_m: float) -> tuple[np.ndarray, np.ndarray]:
+        if self.kind == "boundary":
+            tx, rx = arrays.boundary(self.size_m, self.elements_per_edge)
+        elif self.kind == "uniform_linear":
+            tx, rx = arrays.uniform_linear(self.tx_count, self.rx_count, self.spacing_m)
+        elif self.kind == "uniform_planar":
+            tx, rx = arrays.uniform_planar(self.nx, self.ny, self.spacing_m)
+        else:
+            tx, rx = arrays.ti_3tx4rx(wavelength_m)
+        if self.scan_steps != (1, 1):
+            sx, sy = self.scan_steps
+            gx, gy = np.meshgrid((np.arange(sx) - (sx - 1) / 2) * self.scan_step_m,
+                                 (np.arange(sy) - (sy - 1) / 2) * self.scan_step_m, indexing="ij")
+            tx, rx = arrays.synthetic_aperture(tx, rx, np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)]))
+        return tx, rx
+
+
+class ViewsSpec(StrictModel):
+    kind: Literal["turntable"] = "turntable"
+    distance_m: PositiveFloat
+    azimuths_per_ring: list[PositiveInt] = Field(min_length=1)
+    elevations_rad: list[float] = Field(min_length=1)
+    target_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _rings(self):
+        if len(self.azimuths_per_ring) != len(self.elevations_rad):
+            raise ValueError("azimuths_per_ring and elevations_rad must have the same length")
+        return self
+
+
+class AntennaSpec(StrictModel):
+    pattern_exponent: float = Field(default=0.0, ge=0.0)
+    spreading: bool = True
+
+
+class NoiseSpec(StrictModel):
+    snr_db: float | None = 30.0
+
+
+class RadarSpec(StrictModel):
+    name: str
+    waveform: WaveformSpec
+    array: ArraySpec
+    views: ViewsSpec
+    antenna: AntennaSpec = AntennaSpec()
+    noise: NoiseSpec = NoiseSpec()
+
+
+@dataclass(frozen=True)
+class Radar:
+    """A radar system, ready to place: element positions in its own frame and its poses.
+
+    tx_m (T, 3), rx_m (R, 3) [m] in the radar frame (array in x-y, boresight +z);
+    rotations (V, 3, 3) radar -> scene; positions_m (V, 3) [m]; frequencies_hz (K,) [Hz].
+    """
+
+    name: str
+    tx_m: np.ndarray
+    rx_m: np.ndarray
+    frequencies_hz: np.ndarray
+    rotations: np.ndarray
+    positions_m: np.ndarray
+    pattern_exponent: float = 0.0
+    spreading: bool = True
+    snr_db: float | None = 30.0
+
+    @classmethod
+    def from_spec(cls, spec: RadarSpec) -> Radar:
+        freqs = spec.waveform.frequencies()
+        # Arrays are laid out at the shortest wavelength so spacings hold across the band.
+        tx, rx = spec.array.elements(SPEED_OF_LIGHT / float(np.max(freqs)))
+        v = spec.views
+        rotations, positions = turntable_views(v.distance_m, v.azimuths_per_ring, v.elevations_rad, v.target_m)
+        return cls(spec.name, tx, rx, freqs, rotations, positions, spec.antenna.pattern_exponent,
+                   spec.antenna.spreading, spec.noise.snr_db)
+
+    def acquisition(self) -> Acquisition:
+        """Elements placed by every pose, in the scene frame."""
+        rot = torch.as_tensor(self.rotations)
+        pos = torch.as_tensor(self.positions_m)
+        place = lambda e: torch.einsum("vab,eb->vea", rot, torch.as_tensor(e)) + pos[:, None]  # noqa: E731
+        return Acquisition(place(self.tx_m), place(self.rx_m), torch.as_tensor(self.frequencies_hz),
+                           rot[:, :, 2], self.pattern_exponent, self.spreading)
+
+    @property
+    def aperture_m(self) -> float:
+        """Largest extent of the virtual (Tx-Rx midpoint) array [m]."""
+        virtual = 0.5 * (self.tx_m[:, None] + self.rx_m[None]).reshape(-1, 3)
+        return float(np.ptp(virtual[:, :2], axis=0).max())
+
+    def summary(self) -> str:
+        f = self.frequencies_hz
+        return (f"radar {self.name!r}: {len(self.tx_m)} Tx x {len(self.rx_m)} Rx, {len(f)} frequencies "
+                f"{f.min() / 1e9:.2f}-{f.max() / 1e9:.2f} GHz, {len(self.rotations)} views, "
+                f"virtual aperture {self.aperture_m * 100:.1f} cm, range resolution "
+                f"{waveform.range_resolution_m(len(f) * np.ptp(f) / max(len(f) - 1, 1)) * 100:.2f} cm")
+
+
+def radar_presets() -> list[str]:
+    """Names of the built-in radars."""
+    return sorted(p.name.removesuffix(".toml") for p in resources.files("rfsdf.presets.radars").iterdir()
+                  if p.name.endswith(".toml"))
+
+
+def load_radar(name_or_path) -> Radar:
+    """A radar from a preset name or a TOML file; RfsdfError 'file: field: reason' on bad input."""
+    text = str(name_or_path)
+    if text in radar_presets():
+        path = Path(str(resources.files("rfsdf.presets.radars") / f"{text}.toml"))
+    else:
+        path = Path(text)
+        if not path.exists():
+            raise RfsdfError(f"{text}: no such radar file or preset (presets: {', '.join(radar_presets())})")
+    spec = validate(RadarSpec, read_toml(path), str(path))
+    try:
+        return Radar.from_spec(spec)
+    except ValueError as exc:
+        raise RfsdfError(f"{path}: {exc}") from None

@@ -1,0 +1,40 @@
+"""Frequency samples of a radar: OFDM subcarriers or FMCW ADC samples, and resolution formulas."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .acquisition import SPEED_OF_LIGHT
+
+__all__ = ["ofdm_frequencies", "fmcw_frequencies", "range_resolution_m", "cross_range_resolution_m",
+           "unambiguous_range_m"]
+
+
+def ofdm_frequencies(carrier_hz: float, bandwidth_hz: float, subcarriers: int) -> np.ndarray:
+    """(K,) subcarrier frequencies [Hz]: spacing B/K, centred on the carrier (so B = K delta_f)."""
+    if subcarriers < 1 or bandwidth_hz <= 0 or carrier_hz <= bandwidth_hz / 2:
+        raise ValueError("need subcarriers >= 1, bandwidth_hz > 0 and carrier_hz > bandwidth_hz / 2")
+    spacing = bandwidth_hz / subcarriers
+    return carrier_hz + (np.arange(subcarriers) - (subcarriers - 1) / 2) * spacing
+
+
+def fmcw_frequencies(start_hz: float, slope_hz_per_s: float, sample_rate_hz: float, samples: int) -> np.ndarray:
+    """(N,) instantaneous frequencies [Hz] of the ADC samples: f_start + slope * n / f_s."""
+    if samples < 1 or slope_hz_per_s <= 0 or sample_rate_hz <= 0 or start_hz <= 0:
+        raise ValueError("need samples >= 1 and positive start_hz, slope_hz_per_s, sample_rate_hz")
+    return start_hz + slope_hz_per_s * np.arange(samples) / sample_rate_hz
+
+
+def range_resolution_m(bandwidth_hz: float) -> float:
+    """c / (2 B) [m]."""
+    return SPEED_OF_LIGHT / (2 * bandwidth_hz)
+
+
+def cross_range_resolution_m(wavelength_m: float, range_m: float, aperture_m: float) -> float:
+    """lambda R / (2 D) [m] for a (monostatic-equivalent) aperture D at range R."""
+    return wavelength_m * range_m / (2 * aperture_m)
+
+
+def unambiguous_range_m(frequency_step_hz: float) -> float:
+    """c / (2 delta_f) [m]: range differences beyond it alias."""
+    return SPEED_OF_LIGHT / (2 * frequency_step_hz)
