@@ -32,8 +32,8 @@ class Image:
     column_norms_sq: torch.Tensor
 
     def coherent(self) -> torch.Tensor:
-        """(nx, ny, nz) complex64: the design's c_hat with all views in one A."""
-        return (self.per_view * self.column_norms_sq).sum(0) / self.column_norms_sq.sum(0)
+        """(nx, ny, nz) complex64: the design's c_hat with all views in one A (0 where unseen)."""
+        return _safe_divide((self.per_view * self.column_norms_sq).sum(0), self.column_norms_sq.sum(0))
 
     def power(self, *, coherent: bool = False) -> torch.Tensor:
         """(nx, ny, nz) float32: |coherent c_hat|^2, or the mean over views of |c_hat_v|^2."""
@@ -50,7 +50,13 @@ def matched_filter(measurements: Measurements, grid: Grid, *, device=None, progr
         numerator = op.adjoint(measurements.data.to(device), points, per_view=True, progress=progress)
         norms = op.column_norms_sq(points, per_view=True)
     shape = (measurements.acquisition.shape[0], *grid.shape)
-    return Image(grid, (numerator / norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
+    return Image(grid, _safe_divide(numerator, norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
+
+
+def _safe_divide(numerator: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
+    """numerator / norms, and 0 for voxels no antenna sees (||A_q|| = 0)."""
+    seen = norms > 0
+    return torch.where(seen, numerator / torch.where(seen, norms, torch.ones_like(norms)), torch.zeros_like(numerator))
 
 
 def point_spread(acquisition: Acquisition, point_m, grid: Grid) -> Image:
