@@ -7,6 +7,7 @@ import torch
 from click.testing import CliRunner
 
 from rfsdf.cli import main
+from rfsdf.config import resolve_preset
 from rfsdf.errors import RfsdfError
 from rfsdf.geometry import Grid
 from rfsdf.radar import (
@@ -83,7 +84,7 @@ def test_fmcw_import_round_trip(tmp_path):
 
 
 def _radar_file(tmp_path, **changes):
-    text = (load_radar.__globals__["resources"].files("rfsdf.presets.radars") / "near-77g.toml").read_text()
+    text = resolve_preset("near-77g", "rfsdf.presets.radars", "radar").read_text()
     for old, new in changes.items():
         text = text.replace(old, new)
     path = tmp_path / "radar.toml"

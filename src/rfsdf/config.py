@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tomllib
+from importlib import resources
 from pathlib import Path
 from typing import TypeVar
 
@@ -10,7 +11,7 @@ import pydantic
 
 from .errors import RfsdfError
 
-__all__ = ["StrictModel", "read_toml", "validate", "load_model"]
+__all__ = ["StrictModel", "read_toml", "validate", "load_model", "preset_names", "resolve_preset"]
 
 Model = TypeVar("Model", bound=pydantic.BaseModel)
 
@@ -58,3 +59,18 @@ def validate(model: type[Model], data: dict, source: str) -> Model:
 def load_model(model: type[Model], path) -> Model:
     """Read and validate a TOML file in one step."""
     return validate(model, read_toml(path), str(path))
+
+
+def preset_names(package: str) -> list[str]:
+    """Names of the TOML presets shipped in ``package`` (e.g. 'rfsdf.presets.scenes')."""
+    return sorted(p.name.removesuffix(".toml") for p in resources.files(package).iterdir() if p.name.endswith(".toml"))
+
+
+def resolve_preset(name_or_path, package: str, kind: str) -> Path:
+    """The file of a preset name in ``package``, or the given path; RfsdfError if neither exists."""
+    text = str(name_or_path)
+    if text in preset_names(package):
+        return Path(str(resources.files(package) / f"{text}.toml"))
+    if not Path(text).exists():
+        raise RfsdfError(f"{text}: no such {kind} file or preset (presets: {', '.join(preset_names(package))})")
+    return Path(text)

@@ -7,7 +7,6 @@ A scene is loaded from a TOML file (see :mod:`rfsdf.scene_spec`) or a preset nam
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ import torch
 import trimesh
 
 from . import geometry as geo
-from .config import read_toml, validate
+from .config import preset_names, read_toml, resolve_preset, validate
 from .errors import RfsdfError
 from .geometry.differential import gradient
 from .materials import Material
@@ -31,8 +30,7 @@ _NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
 
 def scene_presets() -> list[str]:
     """Names of the built-in scenes."""
-    return sorted(p.name.removesuffix(".toml") for p in resources.files("rfsdf.presets.scenes").iterdir()
-                  if p.name.endswith(".toml"))
+    return preset_names("rfsdf.presets.scenes")
 
 
 @dataclass(frozen=True)
@@ -229,13 +227,7 @@ class Scene:
 
 def load_scene(name_or_path) -> Scene:
     """A scene from a preset name or a TOML file; RfsdfError 'file: field: reason' on bad input."""
-    text = str(name_or_path)
-    if text in scene_presets():
-        path = Path(str(resources.files("rfsdf.presets.scenes") / f"{text}.toml"))
-    else:
-        path = Path(text)
-        if not path.exists():
-            raise RfsdfError(f"{text}: no such scene file or preset (presets: {', '.join(scene_presets())})")
+    path = resolve_preset(name_or_path, "rfsdf.presets.scenes", "scene")
     spec = validate(SceneSpec, read_toml(path), str(path))
     try:
         return Scene(spec, base_dir=path.parent)

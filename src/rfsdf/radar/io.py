@@ -32,14 +32,18 @@ FORMAT_VERSION = 1
 _MEASUREMENTS, _IMAGE = "rfsdf.measurements", "rfsdf.image"
 
 
-def _open(path, kind: str) -> h5py.File:
+def _open_hdf5(path) -> h5py.File:
     path = Path(path)
     if not path.is_file():
         raise RfsdfError(f"{path}: file not found")
     try:
-        fh = h5py.File(path, "r")
+        return h5py.File(path, "r")
     except OSError:
         raise RfsdfError(f"{path}: not a readable HDF5 file (truncated or corrupt?)") from None
+
+
+def _open(path, kind: str) -> h5py.File:
+    fh = _open_hdf5(path)
     fmt, version = fh.attrs.get("format"), fh.attrs.get("format_version")
     if fmt != kind:
         fh.close()
@@ -120,13 +124,7 @@ def import_fmcw(path, *, conjugate: bool = False) -> Measurements:
     (radars whose dechirped IF is exp(+j 2 pi f tau), e.g. TI mmWave, need it).
     """
     path = Path(path)
-    if not path.is_file():
-        raise RfsdfError(f"{path}: file not found")
-    try:
-        fh = h5py.File(path, "r")
-    except OSError:
-        raise RfsdfError(f"{path}: not a readable HDF5 file (truncated or corrupt?)") from None
-    with fh:
+    with _open_hdf5(path) as fh:
         tx, rx, adc = (np.asarray(_read(fh, n, path)) for n in ("tx_m", "rx_m", "adc"))
         bore = np.asarray(_read(fh, "boresight", path)) if "boresight" in fh else None
         try:

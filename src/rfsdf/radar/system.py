@@ -9,7 +9,6 @@ ti_3tx4rx, optionally scanned as a synthetic aperture), ``[views]`` (turntable r
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Literal
 
@@ -17,7 +16,7 @@ import numpy as np
 import torch
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
-from ..config import StrictModel, read_toml, validate
+from ..config import StrictModel, preset_names, read_toml, resolve_preset, validate
 from ..errors import RfsdfError
 from . import arrays, waveform
 from .acquisition import SPEED_OF_LIGHT, Acquisition
@@ -175,19 +174,12 @@ class Radar:
 
 def radar_presets() -> list[str]:
     """Names of the built-in radars."""
-    return sorted(p.name.removesuffix(".toml") for p in resources.files("rfsdf.presets.radars").iterdir()
-                  if p.name.endswith(".toml"))
+    return preset_names("rfsdf.presets.radars")
 
 
 def load_radar(name_or_path) -> Radar:
     """A radar from a preset name or a TOML file; RfsdfError 'file: field: reason' on bad input."""
-    text = str(name_or_path)
-    if text in radar_presets():
-        path = Path(str(resources.files("rfsdf.presets.radars") / f"{text}.toml"))
-    else:
-        path = Path(text)
-        if not path.exists():
-            raise RfsdfError(f"{text}: no such radar file or preset (presets: {', '.join(radar_presets())})")
+    path = resolve_preset(name_or_path, "rfsdf.presets.radars", "radar")
     spec = validate(RadarSpec, read_toml(path), str(path))
     try:
         return Radar.from_spec(spec)
