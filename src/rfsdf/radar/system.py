@@ -9,7 +9,6 @@ ti_3tx4rx, optionally scanned as a synthetic aperture), ``[views]`` (turntable r
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
