@@ -21,7 +21,8 @@ from .acquisition import SPEED_OF_LIGHT, Acquisition
 
 __all__ = ["SensingOperator"]
 
-_DEFAULT_BUDGET_BYTES = 256 * 2**20
+# Small chunks keep the factors cache-resident: on 2 cores 32 MiB ran the adjoint 2x faster than 256 MiB.
+_DEFAULT_BUDGET_BYTES = 32 * 2**20
 
 
 class SensingOperator:
@@ -40,31 +41,46 @@ class SensingOperator:
         self._uniform = len(steps) > 0 and bool((steps - steps.mean()).abs().max() <= 1e-9 * steps.mean().abs())
 
     # Factors ------------------------------------------------------------------------
-    def _factor(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
+    def _geometry(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor):
+        """Distances d (v, E, q) float64 [m] and amplitudes pattern / d (v, E, q) float32.
+
+        Elements (v, E, 3) to points (q, 3). The three coordinates are handled one at a
+        time: torch.linalg.norm over a last axis of 3 is several times slower.
+        """
+        p = points.double()
+        e = positions.to(points.device, torch.float64)
+        rel = [p[None, None, :, i] - e[:, :, None, i] for i in range(3)]
+        d = torch.sqrt(rel[0] ** 2 + rel[1] ** 2 + rel[2] ** 2)
+        amplitude = 1.0 / d if self.acq.spreading else torch.ones_like(d)
+        if self.acq.pattern_exponent > 0:
+            b = boresight.to(points.device, torch.float64)
+            cos = sum(rel[i] * b[:, None, None, i] for i in range(3)) / d
+            amplitude = amplitude * cos.clamp(min=0) ** self.acq.pattern_exponent
+        return d, amplitude.float()
+
+    def _factor(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor,
+                conjugate: bool = False) -> torch.Tensor:
         """(v, K, E, q) complex64: pattern / d * exp(-j k_k d) from elements (v, E, 3) to points (q, 3).
+
+        ``conjugate`` builds exp(+j k_k d) directly: multiplying by a lazily conjugated
+        tensor is about 2.5x slower than by a plain one, which matters in the adjoint.
 
         Phases k d are wrapped in float64 before the cast. For uniformly spaced frequencies
         the K phasors are exp(-j k_0 d) s^k with s = exp(-j dk d), K - 1 complex products, so
         trigonometry runs on (v, E, q) only; otherwise every phase is formed directly.
         """
-        rel = points.double()[None, None, :, :] - positions.to(points.device)[:, :, None, :]  # (v, E, q, 3)
-        d = torch.linalg.norm(rel, dim=-1)
-        amplitude = torch.ones_like(d)
-        if self.acq.spreading:
-            amplitude = amplitude / d
-        if self.acq.pattern_exponent > 0:
-            cos = (rel * boresight.to(points.device)[:, None, None, :]).sum(-1) / d
-            amplitude = amplitude * cos.clamp(min=0) ** self.acq.pattern_exponent
+        d, amplitude = self._geometry(positions, boresight, points)
         k = (2 * math.pi / SPEED_OF_LIGHT) * self.acq.frequencies_hz.to(points.device)
-        wrap = lambda phase: torch.remainder(phase, 2 * math.pi).float()  # noqa: E731
+        sign = 1.0 if conjugate else -1.0
+        wrap = lambda phase: torch.remainder(sign * phase, 2 * math.pi).float()  # noqa: E731
         if self._uniform:
-            phasors = [torch.polar(amplitude.float(), wrap(-k[0] * d))]  # (v, E, q) each
-            step = torch.polar(torch.ones_like(phasors[0].real), wrap(-(k[1] - k[0]) * d))
+            phasors = [torch.polar(amplitude, wrap(k[0] * d))]  # (v, E, q) each
+            step = torch.polar(torch.ones_like(amplitude), wrap((k[1] - k[0]) * d))
             for _ in range(len(k) - 1):
                 phasors.append(phasors[-1] * step)
             return torch.stack(phasors, dim=1)
-        phase = wrap(-k[None, :, None, None] * d[:, None])
-        return torch.polar(amplitude.float()[:, None].expand_as(phase), phase)
+        phase = wrap(k[None, :, None, None] * d[:, None])
+        return torch.polar(amplitude[:, None].expand_as(phase), phase)
 
     def _chunks(self, num_points: int):
         """Yield (view slice, point slice) pairs sized to the memory budget."""
@@ -76,10 +92,10 @@ class SensingOperator:
             for q0 in range(0, num_points, points_per_chunk):
                 yield slice(v0, v0 + views_per_chunk), slice(q0, q0 + points_per_chunk)
 
-    def _factors(self, views: slice, points: torch.Tensor):
+    def _factors(self, views: slice, points: torch.Tensor, conjugate: bool = False):
         acq = self.acq
-        return (self._factor(acq.tx_m[views], acq.boresight[views], points),
-                self._factor(acq.rx_m[views], acq.boresight[views], points))
+        return (self._factor(acq.tx_m[views], acq.boresight[views], points, conjugate),
+                self._factor(acq.rx_m[views], acq.boresight[views], points, conjugate))
 
     # Public operations ----------------------------------------------------------------
     def forward(self, points: torch.Tensor, c: torch.Tensor, *, progress: bool = False) -> torch.Tensor:
@@ -110,18 +126,23 @@ class SensingOperator:
         y_kf = y.to(torch.complex64).permute(0, 3, 1, 2)  # (V, K, T, R)
         blocks: dict[int, list[torch.Tensor]] = {}
         for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A^H y", disable=not progress, leave=False):
-            u, w = self._factors(views, points[pts])
-            z = torch.matmul(y_kf[views].to(points.device), w.conj())  # (v, K, T, q)
-            blocks.setdefault(views.start, []).append((u.conj() * z).sum(dim=(1, 2)))  # (v, q)
+            u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
+            z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
+            blocks.setdefault(views.start, []).append((u_conj * z).sum(dim=(1, 2)))  # (v, q)
         out = torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
         return out if per_view else out.sum(dim=0)
 
     def column_norms_sq(self, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
-        """||A_q||^2 = sum_k (sum_i |U|^2)(sum_j |W|^2): (Q,) float32, or (V, Q) with ``per_view``."""
+        """||A_q||^2 = K (sum_i a_i^2 / d_i^2)(sum_j b_j^2 / d_j^2): (Q,) float32, or (V, Q) with ``per_view``.
+
+        |exp(-j k d)| = 1, so no phase is formed: this costs (T + R) Q per view, not T R K Q.
+        """
         points = as_points(points)
-        out = torch.zeros(self.acq.shape[0], points.shape[0], dtype=torch.float32, device=points.device)
+        acq = self.acq
+        out = torch.zeros(acq.shape[0], points.shape[0], dtype=torch.float32, device=points.device)
         with torch.no_grad():
             for views, pts in self._chunks(points.shape[0]):
-                u, w = self._factors(views, points[pts])
-                out[views, pts] = ((u.abs() ** 2).sum(2) * (w.abs() ** 2).sum(2)).sum(1)
+                tx = self._geometry(acq.tx_m[views], acq.boresight[views], points[pts])[1]
+                rx = self._geometry(acq.rx_m[views], acq.boresight[views], points[pts])[1]
+                out[views, pts] = len(acq.frequencies_hz) * (tx**2).sum(1) * (rx**2).sum(1)
         return out if per_view else out.sum(dim=0)
