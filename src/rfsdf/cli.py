@@ -131,6 +131,86 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
     click.echo(f"wrote {out}")
 
 
+@main.command("reconstruct")
+@click.argument("data", type=click.Path(path_type=Path))
+@click.option("--image", "image_path", type=click.Path(path_type=Path), required=True,
+              help="Matched-filter image of DATA (from `rfsdf image`); its grid is the fit's grid.")
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Run folder.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None, help="Reconstruction TOML.")
+@click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint.")
+@_one_line_errors
+def reconstruct_cmd(data: Path, image_path: Path, out: Path, config_path: Path | None, resume: bool):
+    """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply."""
+    import tomli_w
+
+    from .atomic import atomic_path
+    from .mesh import export_mesh, extract_mesh
+    from .radar import read_image, read_measurements
+    from .recon import Problem, Trainer, load_recon_config
+
+    config = load_recon_config(config_path if config_path or not resume else _run_config(out))
+    problem = Problem.from_image(read_image(image_path), read_measurements(data).acquisition)
+    trainer = Trainer(problem, config, out, progress=True)
+    with atomic_path(out / "config.toml") as tmp:
+        tmp.write_text(tomli_w.dumps(config.model_dump(exclude_none=True)))
+    field = trainer.fit(resume=resume)
+    mesh = extract_mesh(field.sdf, problem.grid.lower_m, problem.grid.upper_m, config.train.mesh_resolution)
+    click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
+
+
+def _run_config(run: Path) -> Path | None:
+    path = run / "config.toml"
+    return path if path.exists() else None
+
+
+@main.command("mesh")
+@click.argument("run", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Mesh file (.ply, .obj, .stl).")
+@click.option("--resolution", default=128, show_default=True, help="Voxels along the longest edge.")
+@_one_line_errors
+def mesh_cmd(run: Path, out: Path, resolution: int):
+    """Mesh the SDF of a reconstruction run by marching cubes."""
+    from .mesh import export_mesh, extract_mesh
+    from .recon import load_field
+
+    field = load_field(run)
+    h = field.encoding.half_extent_m
+    centre = field.encoding.centre.numpy()
+    mesh = extract_mesh(field.sdf, centre - h, centre + h, resolution, progress=True)
+    click.echo(f"wrote {export_mesh(mesh, out)} ({len(mesh.faces)} faces)")
+
+
+@main.command("evaluate")
+@click.argument("mesh_path", type=click.Path(path_type=Path))
+@click.option("--scene", "scene_name", required=True, help="Ground-truth scene preset or TOML file.")
+@click.option("--threshold", "threshold_m", default=0.005, show_default=True, help="F-score distance [m].")
+@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
+@_one_line_errors
+def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: bool):
+    """Compare a mesh with a scene's true surfaces: Chamfer, F-score, normals, Hausdorff, IoU."""
+    import dataclasses
+    import json
+
+    import trimesh
+
+    from .metrics import compare_meshes, volumetric_iou
+    from .scene import load_scene
+
+    if not mesh_path.exists():
+        raise ValueError(f"{mesh_path}: file not found")
+    mesh = trimesh.load(mesh_path, force="mesh")
+    sc = load_scene(scene_name)
+    metrics = compare_meshes(mesh, sc.ground_truth_mesh(), threshold_m=threshold_m)
+    if mesh.is_watertight:
+        iou = volumetric_iou(mesh, lambda p: sc.sdf(p) < 0, sc.lower_m, sc.upper_m)
+        metrics = dataclasses.replace(metrics, iou=iou)
+    if as_json:
+        click.echo(json.dumps(metrics.as_dict(), indent=2))
+    else:
+        for key, value in metrics.as_dict().items():
+            click.echo(f"{key:>20}  {value if value is None else f'{value:.4g}'}")
+
+
 @main.command()
 @click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")

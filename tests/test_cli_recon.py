@@ -1,0 +1,60 @@
+import json
+
+import torch
+import trimesh
+from click.testing import CliRunner
+
+from rfsdf.cli import main
+from rfsdf.geometry import Grid
+from rfsdf.radar import Acquisition, Measurements, matched_filter, write_image, write_measurements
+
+
+def _files(tmp_path):
+    """A point target seen by 4 single-antenna views, and its MF image on a 10^3 grid."""
+    centres = torch.tensor([[0.5, 0, 0], [-0.5, 0, 0], [0, 0.5, 0], [0, -0.5, 0]], dtype=torch.float64)
+    acq = Acquisition(centres[:, None], centres[:, None], torch.linspace(77e9, 81e9, 8), -centres / 0.5)
+    from rfsdf.radar import SensingOperator
+    y = SensingOperator(acq).forward(torch.tensor([[0.01, 0.0, 0.0]]), torch.ones(1, dtype=torch.complex64))
+    m = Measurements(acq, y)
+    write_measurements(tmp_path / "data.h5", m)
+    write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
+    (tmp_path / "tiny.toml").write_text(
+        '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nrenderer = "local"\n'
+        '[sampling]\ndata_batch = 128\neikonal_batch = 64\n[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
+
+
+def test_reconstruct_mesh_evaluate_and_resume(tmp_path):
+    _files(tmp_path)
+    runner = CliRunner()
+    args = ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
+            "--out", str(tmp_path / "run"), "--config", str(tmp_path / "tiny.toml")]
+    result = runner.invoke(main, args)
+    assert result.exit_code == 0, result.output
+    for name in ("checkpoint.pt", "log.csv", "config.toml", "mesh.ply"):
+        assert (tmp_path / "run" / name).exists()
+    again = runner.invoke(main, args)
+    assert again.exit_code == 2 and "already holds a run" in again.output
+    resumed = runner.invoke(main, args[:-2] + ["--resume"])  # finished run: nothing left, re-meshes
+    assert resumed.exit_code == 0, resumed.output
+
+    result = runner.invoke(main, ["mesh", str(tmp_path / "run"), "--out", str(tmp_path / "m.obj"), "--resolution", "20"])
+    assert result.exit_code == 0, result.output
+    assert len(trimesh.load(tmp_path / "m.obj", force="mesh").faces) > 0
+
+    result = runner.invoke(main, ["evaluate", str(tmp_path / "m.obj"), "--scene", "sphere", "--json"])
+    assert result.exit_code == 0, result.output
+    metrics = json.loads(result.output)
+    assert metrics["chamfer_l1_mm"] > 0 and 0 <= metrics["fscore"] <= 1
+
+
+def test_bad_inputs_get_one_line(tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(main, ["mesh", str(tmp_path), "--out", str(tmp_path / "m.ply")])
+    assert result.exit_code == 2 and "no checkpoint.pt" in result.output and "Traceback" not in result.output
+    result = runner.invoke(main, ["evaluate", str(tmp_path / "none.ply"), "--scene", "sphere"])
+    assert result.exit_code == 2 and "file not found" in result.output
+    (tmp_path / "bad.toml").write_text("[train]\nsteps = -3\n")
+    _files(tmp_path)
+    result = runner.invoke(main, ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
+                                  "--out", str(tmp_path / "r"), "--config", str(tmp_path / "bad.toml")])
+    assert result.exit_code == 2 and "train.steps" in result.output
