@@ -199,11 +199,11 @@ class Trainer:
             self.optimizer.step()
             self.scheduler.step()
             self.step += 1
-            self.log.append({"step": self.step, **{k: float(v) for k, v in terms.items()},
+            self.log.append({"step": self.step, **{k: float(v.detach()) for k, v in terms.items()},
                              "sigma_mm": sigma * 1e3, "lr": self.scheduler.get_last_lr()[0],
                              "band_voxels": int(self.band.sum())})
             bar.update(1)
-            bar.set_postfix(data=f"{float(terms['data']):.3g}", eik=f"{float(terms['eikonal']):.3g}",
+            bar.set_postfix(data=f"{float(terms['data'].detach()):.3g}", eik=f"{float(terms['eikonal'].detach()):.3g}",
                             sigma=f"{sigma * 1e3:.1f}mm")
             if self.step % tc.checkpoint_every == 0 or self.step == tc.steps:
                 self.save()
