@@ -67,6 +67,15 @@ class HalfSpace(SDF):
         return points @ _param(self.normal, points) - self.offset
 
 
+def _axial_coordinates(points, origin, axis):
+    """(radial, along) [m], each (N,): distance from, and position along, the line through
+    ``origin`` with unit direction ``axis``."""
+    rel = points - _param(origin, points)
+    along = rel @ _param(axis, points)
+    radial = torch.linalg.norm(rel - along[:, None] * _param(axis, points), dim=1)
+    return radial, along
+
+
 class Cylinder(SDF):
     """Infinite cylinder of ``radius`` [m] about the line through ``point`` along ``axis``."""
 
@@ -76,10 +85,7 @@ class Cylinder(SDF):
         self.point = as_vector(point, "point")
 
     def _radial(self, points):
-        rel = points - _param(self.point, points)
-        along = rel @ _param(self.axis, points)
-        radial = torch.linalg.norm(rel - along[:, None] * _param(self.axis, points), dim=1)
-        return radial, along
+        return _axial_coordinates(points, self.point, self.axis)
 
     def _evaluate(self, points):
         return self._radial(points)[0] - self.radius
@@ -110,9 +116,7 @@ class Torus(SDF):
         self.center = as_vector(center, "center")
 
     def _evaluate(self, points):
-        rel = points - _param(self.center, points)
-        along = rel @ _param(self.axis, points)
-        radial = torch.linalg.norm(rel - along[:, None] * _param(self.axis, points), dim=1)
+        radial, along = _axial_coordinates(points, self.center, self.axis)
         ring = torch.stack([radial - self.major_radius, along], dim=1)
         return torch.linalg.norm(ring, dim=1) - self.minor_radius
 
