@@ -67,8 +67,7 @@ class PhysicsRenderer:
         self.kernel_fft = torch.fft.rfftn(kernels, s=self.fft_shape, dim=(1, 2, 3))
 
     @classmethod
-    def from_acquisition(cls, acquisition: Acquisition, grid: Grid, psf_radius_m: float,
-                         progress: bool = False) -> "PhysicsRenderer":
+    def from_acquisition(cls, acquisition: Acquisition, grid: Grid, psf_radius_m: float) -> "PhysicsRenderer":
         """Compute each view's PSF around the grid's central voxel through the operator."""
         voxel = grid.voxel_m
         radius = max(1, int(round(psf_radius_m / float(voxel.max()))))

@@ -101,6 +101,9 @@ class Trainer:
         self.points = problem.grid.points()
         self.voxel_m = float(problem.grid.voxel_m.max())
         self.probabilities = data_voxel_probabilities(problem.observed, config.sampling.data_focus)
+        # Moved to the device once, not on every step.
+        self.observed = problem.observed.flatten(1).to(self.device)  # (V, N)
+        self.view_centres_m = problem.view_centres_m.to(self.device)
         self.step = 0
         self.log: list[dict] = []
         self.band: torch.Tensor | None = None  # (N,) bool, voxels where c is evaluated
@@ -158,16 +161,16 @@ class Trainer:
         f, gamma = self.field.sdf_and_reflectivity(points)
         (grad,) = torch.autograd.grad(f.sum(), points, retain_graph=True)
         normals = torch.nn.functional.normalize(grad, dim=1)  # detached: a visibility weight only
-        views = torch.randperm(len(problem.view_centres_m), generator=self.generator)[:cfg.sampling.views_per_step]
-        views = views.sort().values
-        weights = facing_weights(points.detach(), normals, problem.view_centres_m[views].to(self.device),
+        views = torch.randperm(len(self.view_centres_m), generator=self.generator)[:cfg.sampling.views_per_step]
+        views = views.sort().values.to(self.device)
+        weights = facing_weights(points.detach(), normals, self.view_centres_m[views],
                                  cfg.render.facing_exponent)
         c = gamma * delta_sigma(f, sigma_m)
         intensity = torch.zeros(len(views), problem.grid.size, device=self.device)
         intensity = intensity.index_copy(1, index.to(self.device), weights * c**2)
-        predicted = self.renderer(intensity.reshape(len(views), *problem.grid.shape), views.to(self.device))
+        predicted = self.renderer(intensity.reshape(len(views), *problem.grid.shape), views)
         voxels = sample_data_voxels(self.probabilities, cfg.sampling.data_batch, self.generator).to(self.device)
-        observed = problem.observed[views].flatten(1).to(self.device)[:, voxels]
+        observed = self.observed[views][:, voxels]
         data = data_loss(predicted.flatten(1)[:, voxels], observed, target=cfg.loss.target,
                          norm=cfg.loss.norm, huber_delta=cfg.loss.huber_delta)
         near = self.points[self.near] if self.near.any() else self.points[index]
