@@ -174,9 +174,7 @@ def mesh_cmd(run: Path, out: Path, resolution: int):
     from .recon import load_field
 
     field = load_field(run)
-    h = field.encoding.half_extent_m
-    centre = field.encoding.centre.numpy()
-    mesh = extract_mesh(field.sdf, centre - h, centre + h, resolution, progress=True)
+    mesh = extract_mesh(field.sdf, field.lower_m, field.upper_m, resolution, progress=True)
     click.echo(f"wrote {export_mesh(mesh, out)} ({len(mesh.faces)} faces)")
 
 

@@ -120,6 +120,7 @@ class RadarField(nn.Module):
                  init_radius_m: float | None = None, geometric_init: bool = True,
                  reflectivity_width: int = 64, reflectivity_floor: float = 0.02):
         super().__init__()
+        self.lower_m, self.upper_m = tuple(map(float, lower_m)), tuple(map(float, upper_m))  # [m]
         self.encoding = PositionalEncoding(lower_m, upper_m, levels)
         h = self.encoding.half_extent_m
         radius = 0.5 if init_radius_m is None else init_radius_m / h
