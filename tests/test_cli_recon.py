@@ -20,7 +20,7 @@ def _files(tmp_path):
     write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
     (tmp_path / "tiny.toml").write_text(
         '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nrenderer = "local"\n'
-        '[sampling]\ndata_batch = 128\neikonal_batch = 64\n[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
+        '[init]\nsteps = 20\nbatch = 256\n[sampling]\ndata_batch = 128\neikonal_batch = 64\n[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
 
 
 def test_reconstruct_mesh_evaluate_and_resume(tmp_path):

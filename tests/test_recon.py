@@ -6,6 +6,7 @@ from rfsdf.geometry import Grid
 from rfsdf.radar import Acquisition, load_radar, point_spread
 from rfsdf.recon import PhysicsRenderer, Problem, ReconConfig, Trainer, delta_sigma, sigma_at
 from rfsdf.recon.trainer import load_field
+from rfsdf.recon.warm_start import image_signed_distance
 
 TRUE_RADIUS = 0.035
 
@@ -20,9 +21,10 @@ def _tiny_problem() -> Problem:
     return Problem(grid, shell.expand(4, -1, -1, -1).clone(), centres.float(), acq)
 
 
-def _config(steps=20, **train) -> ReconConfig:
+def _config(steps=20, init="sphere", **train) -> ReconConfig:
     return ReconConfig.model_validate({
         "field": {"width": 32, "depth": 4, "levels": 2, "init_radius_m": 0.02},
+        "init": {"method": init, "threshold": 0.5, "steps": 150, "lr": 3e-3, "batch": 1024},
         "render": {"renderer": "local", "facing_exponent": 0.0},
         "sampling": {"data_batch": 512, "eikonal_batch": 256, "views_per_step": 2},
         "train": {"steps": steps, "checkpoint_every": 5, "lr": 3e-3, **train},
@@ -50,6 +52,29 @@ def test_fit_moves_the_zero_level_set_toward_the_truth(tmp_path):
     assert before == pytest.approx(TRUE_RADIUS - 0.02, abs=0.003)
     assert after < 0.4 * before
     assert (tmp_path / "run" / "log.csv").read_text().count("\n") == 151
+
+
+def test_image_signed_distance_of_a_ball_matches_the_closed_form():
+    grid = Grid((-0.06,) * 3, (0.06,) * 3, (40, 40, 40))
+    p = grid.points()
+    power = (p.norm(dim=1) < 0.03).float().reshape(grid.shape)  # 1 inside a 3 cm ball, 0 outside
+    distance = torch.from_numpy(image_signed_distance(power.numpy(), grid, 0.5)).flatten()
+    exact = p.norm(dim=1) - 0.03
+    assert (distance - exact).abs().max() < float(grid.voxel_m[0])  # voxelised boundary: within a voxel
+    assert (distance - exact).abs().mean() < 0.4 * float(grid.voxel_m[0])
+    with pytest.raises(ValueError, match="selects no voxel"):
+        image_signed_distance(torch.zeros(grid.shape).numpy(), grid, 0.5)
+
+
+def test_image_warm_start_puts_the_surface_where_the_image_is_bright(tmp_path):
+    directions = torch.nn.functional.normalize(torch.randn(500, 3, generator=torch.Generator().manual_seed(1)), dim=1)
+    trainer = Trainer(_tiny_problem(), _config(steps=1, init="image"), tmp_path / "run")
+    trainer.warm_start()
+    with torch.no_grad():
+        on_truth = trainer.field.sdf(directions * TRUE_RADIUS).abs().mean().item()
+    # The shell image above half its peak amplitude is a shell of half-width ~7 mm around the
+    # truth: the warm start's zero set hugs its outer side, much nearer than the 15 mm start.
+    assert on_truth < 0.010
 
 
 def test_resume_after_a_kill_reproduces_the_uninterrupted_run(tmp_path):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, NonNegativeFloat, PositiveFloat, PositiveInt
+from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 
 from ..config import StrictModel, load_model
 
@@ -28,9 +28,20 @@ class FieldConfig(StrictModel):
 class RenderConfig(StrictModel):
     renderer: Literal["physics", "local"] = "physics"
     psf_radius_m: PositiveFloat = 0.06  # half-width of the PSF kernel the physics renderer uses
-    facing_exponent: NonNegativeFloat = 1.0  # view weight max(0, n.u)^e; 0 turns it off
+    # View weight max(0, n.u)^e; 0 turns it off. Coherent imaging sees smooth surfaces only
+    # near specular, so a sharp lobe (16) matches the simulator's images best (README).
+    facing_exponent: NonNegativeFloat = 16.0
+    train_normals: bool = True  # the data term may turn surfaces (gradient through n)
     band_sigmas: PositiveFloat = 3.0  # c is evaluated where |f| < band_sigmas * sigma + 1 voxel
     band_refresh_every: PositiveInt = 10
+
+
+class InitConfig(StrictModel):
+    method: Literal["image", "sphere"] = "image"  # image: warm start from the MF image; sphere: SAL only
+    threshold: float = Field(0.15, gt=0, lt=1, description="inside where MF amplitude >= threshold * peak")
+    steps: NonNegativeInt = 300
+    lr: PositiveFloat = 1e-3
+    batch: PositiveInt = 8192
 
 
 class SigmaConfig(StrictModel):
@@ -55,9 +66,9 @@ class SamplingConfig(StrictModel):
 
 
 class TrainConfig(StrictModel):
-    steps: PositiveInt = 400
-    lr: PositiveFloat = 1e-3
-    lr_end: PositiveFloat = 1e-4
+    steps: PositiveInt = 100
+    lr: PositiveFloat = 1e-4
+    lr_end: PositiveFloat = 1e-5
     weight_decay: NonNegativeFloat = 1e-4
     checkpoint_every: PositiveInt = 50
     seed: int = 0
@@ -67,6 +78,7 @@ class TrainConfig(StrictModel):
 
 class ReconConfig(StrictModel):
     field: FieldConfig = FieldConfig()
+    init: InitConfig = InitConfig()
     render: RenderConfig = RenderConfig()
     sigma: SigmaConfig = SigmaConfig()
     loss: LossConfig = LossConfig()

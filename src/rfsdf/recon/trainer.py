@@ -1,6 +1,6 @@
 """Fitting a RadarField to matched-filter images: the GeRaF training loop.
 
-Each step: evaluate f and Gamma on the band of voxels near the current zero level set,
+A fresh run first warm-starts f from the thresholded MF image (see ``warm_start``). Each step: evaluate f and Gamma on the band of voxels near the current zero level set,
 render c = Gamma delta_sigma(f) into predicted MF power for a few random views, compare
 with the observed MF power on a batch of voxels, add lambda * Eikonal, take an AdamW step.
 Checkpoints are atomic and hold everything needed to continue bit for bit (network,
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import tomli_w
 import torch
 from tqdm.auto import tqdm
 
@@ -31,10 +32,12 @@ from .losses import data_loss, eikonal_loss
 from .render import delta_sigma, facing_weights, make_renderer
 from .sampling import band_mask, data_voxel_probabilities, eikonal_points, sample_data_voxels
 from .schedules import exponential_decay, sigma_at
+from .warm_start import fit_to_distance, image_signed_distance
 
-__all__ = ["Problem", "Trainer", "load_field", "CHECKPOINT_NAME", "LOG_NAME"]
+__all__ = ["Problem", "Trainer", "load_field", "CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME"]
 
 CHECKPOINT_NAME = "checkpoint.pt"
+CONFIG_NAME = "config.toml"
 LOG_NAME = "log.csv"
 LOG_FIELDS = ("step", "loss", "data", "eikonal", "sigma_mm", "lr", "band_voxels")
 
@@ -128,11 +131,21 @@ class Trainer:
             writer.writeheader()
             writer.writerows(self.log)
 
+    def write_config(self) -> Path:
+        """Write the resolved config as ``run_dir/config.toml`` (atomically); returns its path."""
+        path = self.run_dir / CONFIG_NAME
+        with atomic_path(path) as tmp:
+            tmp.write_text(tomli_w.dumps(self.config.model_dump(exclude_none=True)))
+        return path
+
     def load(self) -> None:
         state = torch.load(self.checkpoint_path, map_location=self.device, weights_only=False)
         if state["config"] != self.config.model_dump():
             raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made with another config; "
                              "resume with the run's own config.toml")
+        if state["field_kwargs"] != self.field_kwargs:
+            raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made for another image grid; "
+                             "resume with the same data and image")
         self.field.load_state_dict(state["field"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
@@ -140,6 +153,17 @@ class Trainer:
         self.step, self.band, self.near, self.log = state["step"], state["band"], state["near"], state["log"]
 
     # Training ----------------------------------------------------------------------------
+    def warm_start(self) -> None:
+        """Pre-fit f to the signed distance of the thresholded view-mean MF image."""
+        ic = self.config.init
+        if ic.method != "image" or ic.steps == 0:
+            return
+        mean_power = self.problem.observed.mean(0).numpy()
+        target = torch.from_numpy(image_signed_distance(mean_power, self.problem.grid, ic.threshold)).flatten()
+        fit_to_distance(self.field.sdf, self.field.parameters(), self.points.to(self.device), target.to(self.device),
+                        steps=ic.steps, lr=ic.lr, batch=ic.batch, eikonal_weight=self.config.loss.eikonal_weight,
+                        generator=self.generator)
+
     def sigma_m(self, step: int) -> float:
         sc = self.config.sigma
         return sigma_at(step, self.config.train.steps, sc.start_voxels * self.voxel_m,
@@ -159,8 +183,8 @@ class Trainer:
         index = self.band.nonzero()[:, 0]
         points = self.points[index].to(self.device).requires_grad_(True)
         f, gamma = self.field.sdf_and_reflectivity(points)
-        (grad,) = torch.autograd.grad(f.sum(), points, retain_graph=True)
-        normals = torch.nn.functional.normalize(grad, dim=1)  # detached: a visibility weight only
+        (grad,) = torch.autograd.grad(f.sum(), points, retain_graph=True, create_graph=cfg.render.train_normals)
+        normals = torch.nn.functional.normalize(grad, dim=1)
         views = torch.randperm(len(self.view_centres_m), generator=self.generator)[:cfg.sampling.views_per_step]
         views = views.sort().values.to(self.device)
         weights = facing_weights(points.detach(), normals, self.view_centres_m[views],
@@ -186,6 +210,10 @@ class Trainer:
             self.load()
         elif self.checkpoint_path.exists():
             raise RfsdfError(f"{self.run_dir}: already holds a run; pass --resume to continue it or choose another --out")
+        else:
+            self.write_config()
+            self.warm_start()
+            self.save()  # a run killed from here on resumes after the warm start
         bar = tqdm(total=tc.steps, initial=self.step, desc="fit", disable=not self.progress)
         while self.step < tc.steps:
             sigma = self.sigma_m(self.step)
