@@ -42,3 +42,15 @@ def test_iou_of_offset_spheres_matches_closed_form():
     iou = volumetric_iou(mesh, lambda p: Sphere(r).translate((d, 0, 0))(p) < 0, (-0.06, -0.06, -0.06),
                          (0.11, 0.06, 0.06), samples=20_000)
     assert iou == pytest.approx(expected, abs=0.03)
+
+
+def test_evaluate_mesh_against_a_scene_fills_in_the_iou_of_a_closed_mesh():
+    from rfsdf.metrics import evaluate_mesh
+    from rfsdf.scene import load_scene
+
+    scene = load_scene("sphere")
+    closed = extract_mesh(scene.sdf, scene.lower_m, scene.upper_m, 48)
+    metrics = evaluate_mesh(closed, scene, samples=10_000)
+    assert metrics.chamfer_l1_mm < 0.5 and metrics.iou > 0.97
+    cap = trimesh.Trimesh(closed.vertices, closed.faces[closed.triangles_center[:, 2] > 0])  # open
+    assert evaluate_mesh(cap, scene, samples=10_000).iou is None

@@ -141,25 +141,21 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @_one_line_errors
 def reconstruct_cmd(data: Path, image_path: Path, out: Path, config_path: Path | None, resume: bool):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply."""
-    import tomli_w
-
-    from .atomic import atomic_path
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
     from .recon import Problem, Trainer, load_recon_config
 
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
     problem = Problem.from_image(read_image(image_path), read_measurements(data).acquisition)
-    trainer = Trainer(problem, config, out, progress=True)
-    with atomic_path(out / "config.toml") as tmp:
-        tmp.write_text(tomli_w.dumps(config.model_dump(exclude_none=True)))
-    field = trainer.fit(resume=resume)
+    field = Trainer(problem, config, out, progress=True).fit(resume=resume)
     mesh = extract_mesh(field.sdf, problem.grid.lower_m, problem.grid.upper_m, config.train.mesh_resolution)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
 
 
 def _run_config(run: Path) -> Path | None:
-    path = run / "config.toml"
+    from .recon.trainer import CONFIG_NAME
+
+    path = run / CONFIG_NAME
     return path if path.exists() else None
 
 
@@ -186,22 +182,16 @@ def mesh_cmd(run: Path, out: Path, resolution: int):
 @_one_line_errors
 def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: bool):
     """Compare a mesh with a scene's true surfaces: Chamfer, F-score, normals, Hausdorff, IoU."""
-    import dataclasses
     import json
 
     import trimesh
 
-    from .metrics import compare_meshes, volumetric_iou
+    from .metrics import evaluate_mesh
     from .scene import load_scene
 
     if not mesh_path.exists():
         raise ValueError(f"{mesh_path}: file not found")
-    mesh = trimesh.load(mesh_path, force="mesh")
-    sc = load_scene(scene_name)
-    metrics = compare_meshes(mesh, sc.ground_truth_mesh(), threshold_m=threshold_m)
-    if mesh.is_watertight:
-        iou = volumetric_iou(mesh, lambda p: sc.sdf(p) < 0, sc.lower_m, sc.upper_m)
-        metrics = dataclasses.replace(metrics, iou=iou)
+    metrics = evaluate_mesh(trimesh.load(mesh_path, force="mesh"), load_scene(scene_name), threshold_m=threshold_m)
     if as_json:
         click.echo(json.dumps(metrics.as_dict(), indent=2))
     else:
@@ -210,23 +200,22 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 
 
 @main.command()
-@click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
-@click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("rfsdf-demo"), show_default=True)
-@click.option("--voxel", "voxel_m", type=float, default=0.006, show_default=True, help="Image voxel [m].")
-@click.option("--seed", default=0, show_default=True)
+@click.option("--renderer", type=click.Choice(["physics", "local"]), default="physics", show_default=True)
+@click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
 @_one_line_errors
-def demo(scene_name: str, radar_name: str, out: Path, voxel_m: float, seed: int):
-    """Simulate, image and picture the default scene; every artefact goes to --out.
+def demo(out: Path, renderer: str, quick: bool):
+    """Simulate, image, reconstruct, mesh and evaluate the default scene; all artefacts go to --out.
 
-    (Reconstruction, meshing and metrics join this pipeline with the GeRaF fit.)
+    Ends with a table of metrics for the GeRaF reconstruction and the MF-threshold baseline.
+    A second run with the same --out continues (or reuses) the fit.
     """
-    from .radar import write_measurements
-    from .viz import plot_sdf_slices
+    import dataclasses
 
-    sc, measurements = _simulate(scene_name, radar_name, seed)
-    path = plot_sdf_slices(sc.sdf, sc.lower_m, sc.upper_m, out / "scene-slices.png",
-                           title=f"scene {sc.name!r}: SDF slices")
-    write_measurements(out / "measurements.h5", measurements)
-    click.echo(f"wrote {path} and {out / 'measurements.h5'}")
-    _image(measurements, sc.lower_m, sc.upper_m, voxel_m, out / "image.h5", out / "image-mip.png")
+    from .demo import QUICK, DemoSettings, metrics_table, run_demo
+
+    settings = QUICK if quick else DemoSettings()
+    recon = {**settings.recon, "render": {**settings.recon.get("render", {}), "renderer": renderer}}
+    result = run_demo(out, dataclasses.replace(settings, recon=recon), log=click.echo)
+    click.echo(metrics_table(result))
+    click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")

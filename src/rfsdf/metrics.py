@@ -4,7 +4,7 @@ neighbours) and volumetric IoU (from inside/outside tests on uniform points in a
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF
 
-__all__ = ["MeshMetrics", "compare_meshes", "volumetric_iou"]
+__all__ = ["MeshMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh"]
 
 
 @dataclass(frozen=True)
@@ -73,3 +73,14 @@ def volumetric_iou(predicted: trimesh.Trimesh, inside_reference: Callable[[torch
         b = inside_reference(torch.as_tensor(points, dtype=torch.float32)).cpu().numpy().astype(bool)
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
+
+
+def evaluate_mesh(mesh: trimesh.Trimesh, scene, *, threshold_m: float = 0.005, samples: int = 50_000,
+                  seed: int = 0) -> MeshMetrics:
+    """Metrics of ``mesh`` against a :class:`~rfsdf.scene.Scene`'s true surfaces; the IoU is
+    filled in when the mesh is closed (an open mesh has no inside)."""
+    metrics = compare_meshes(mesh, scene.ground_truth_mesh(), threshold_m=threshold_m, samples=samples, seed=seed)
+    if not mesh.is_watertight:
+        return metrics
+    iou = volumetric_iou(mesh, lambda p: scene.sdf(p) < 0, scene.lower_m, scene.upper_m, seed=seed)
+    return replace(metrics, iou=iou)
