@@ -54,7 +54,7 @@ class LossConfig(StrictModel):
     target: Literal["amplitude", "power"] = "amplitude"
     norm: Literal["l2", "huber"] = "l2"
     huber_delta: PositiveFloat = 0.05
-    eikonal_weight: NonNegativeFloat = 0.1
+    eikonal_weight: NonNegativeFloat = 0.01
 
 
 class SamplingConfig(StrictModel):
@@ -69,6 +69,7 @@ class TrainConfig(StrictModel):
     steps: PositiveInt = 100
     lr: PositiveFloat = 1e-4
     lr_end: PositiveFloat = 1e-5
+    reflectivity_lr_scale: PositiveFloat = 10.0  # Gamma adapts faster than f: dim, don't delete
     weight_decay: NonNegativeFloat = 1e-4
     checkpoint_every: PositiveInt = 50
     seed: int = 0

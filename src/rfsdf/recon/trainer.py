@@ -32,7 +32,7 @@ from .losses import data_loss, eikonal_loss
 from .render import delta_sigma, facing_weights, make_renderer
 from .sampling import band_mask, data_voxel_probabilities, eikonal_points, sample_data_voxels
 from .schedules import exponential_decay, sigma_at
-from .warm_start import fit_to_distance, image_signed_distance
+from .warm_start import fit_to_image, image_signed_distance, local_peak_amplitude
 
 __all__ = ["Problem", "Trainer", "load_field", "CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME"]
 
@@ -95,7 +95,9 @@ class Trainer:
             torch.manual_seed(config.train.seed)
             self.field = RadarField(**self.field_kwargs).to(self.device)
         tc = config.train
-        self.optimizer = torch.optim.AdamW(self.field.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
+        groups = [{"params": self.field.geometry.parameters(), "lr": tc.lr},
+                  {"params": self.field.reflectance.parameters(), "lr": tc.lr * tc.reflectivity_lr_scale}]
+        self.optimizer = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay)
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(
             self.optimizer, lambda step: exponential_decay(step, tc.steps, 1.0, tc.lr_end / tc.lr))
         self.generator = torch.Generator().manual_seed(tc.seed)
@@ -154,15 +156,18 @@ class Trainer:
 
     # Training ----------------------------------------------------------------------------
     def warm_start(self) -> None:
-        """Pre-fit f to the signed distance of the thresholded view-mean MF image."""
+        """Pre-fit f to the signed distance of the thresholded view-mean MF image, and Gamma
+        to its local peak amplitude (see ``warm_start``)."""
         ic = self.config.init
         if ic.method != "image" or ic.steps == 0:
             return
         mean_power = self.problem.observed.mean(0).numpy()
-        target = torch.from_numpy(image_signed_distance(mean_power, self.problem.grid, ic.threshold)).flatten()
-        fit_to_distance(self.field.sdf, self.field.parameters(), self.points.to(self.device), target.to(self.device),
-                        steps=ic.steps, lr=ic.lr, batch=ic.batch, eikonal_weight=self.config.loss.eikonal_weight,
-                        generator=self.generator)
+        distance = image_signed_distance(mean_power, self.problem.grid, ic.threshold)
+        window = round(self.config.render.psf_radius_m / 2 / self.voxel_m)
+        peak = local_peak_amplitude(mean_power, window)
+        fit_to_image(self.field, self.points.to(self.device), torch.from_numpy(distance).flatten().to(self.device),
+                     torch.from_numpy(peak).flatten().to(self.device), steps=ic.steps, lr=ic.lr, batch=ic.batch,
+                     eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator)
 
     def sigma_m(self, step: int) -> float:
         sc = self.config.sigma

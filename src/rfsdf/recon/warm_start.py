@@ -5,7 +5,10 @@ starts far from an object never finds it; a sphere start only works for objects 
 touches. The matched-filter image already says roughly where things are: voxels whose
 view-mean MF amplitude exceeds ``threshold`` of its peak are taken as inside, the signed
 Euclidean distance to that set's boundary is the target, and f is regressed onto it (L1,
-clipped, plus the Eikonal term) before the GeRaF loss takes over.
+clipped, plus the Eikonal term) before the GeRaF loss takes over. The reflectivity is
+regressed at the same time onto the local peak of the MF amplitude (a max filter over the
+PSF's cross-range width), so weak reflectors (wood, drywall) start dim instead of being
+explained away by moving their surfaces.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from scipy import ndimage
 from ..geometry import Grid
 from .losses import eikonal_loss
 
-__all__ = ["image_signed_distance", "fit_to_distance"]
+__all__ = ["image_signed_distance", "local_peak_amplitude", "fit_to_image"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
 
@@ -40,20 +43,31 @@ def image_signed_distance(power: np.ndarray, grid: Grid, threshold: float) -> np
     return np.where(inside, -inside_distance, outside_distance).astype(np.float32)
 
 
-def fit_to_distance(sdf, parameters, points_m: torch.Tensor, target_m: torch.Tensor, *, steps: int, lr: float,
-                    batch: int, eikonal_weight: float, generator: torch.Generator) -> float:
-    """Regress ``sdf`` (points (N, 3) -> (N,)) onto ``target_m`` (N,) at ``points_m`` by Adam.
+def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
+    """(nx, ny, nz) float32 max of sqrt(power) over a cube of ``window_voxels``, peak 1."""
+    amplitude = np.sqrt(np.maximum(np.asarray(power, float), 0))
+    peak = ndimage.maximum_filter(amplitude, size=max(1, int(window_voxels)))
+    return (peak / max(float(peak.max()), 1e-30)).astype(np.float32)
 
-    Each step draws ``batch`` of the points; the Eikonal term is taken on a quarter of them.
-    Returns the last clipped L1 residual [m].
+
+def fit_to_image(field, points_m: torch.Tensor, sdf_target_m: torch.Tensor, reflectivity_target: torch.Tensor, *,
+                 steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator) -> float:
+    """Regress ``field`` (a RadarField) onto targets (N,) at ``points_m`` (N, 3) by Adam.
+
+    f by clipped L1 against ``sdf_target_m`` plus the Eikonal term (on a quarter of the
+    batch); Gamma by L1 against ``reflectivity_target`` (None: f only). Each step draws
+    ``batch`` points. Returns the last clipped L1 residual of f [m].
     """
-    optimizer = torch.optim.Adam(parameters, lr=lr)
+    optimizer = torch.optim.Adam(field.parameters(), lr=lr)
     residual = float("nan")
     for _ in range(steps):
         index = torch.randint(len(points_m), (batch,), generator=generator).to(points_m.device)
         points = points_m[index]
-        misfit = (sdf(points) - target_m[index]).abs().clamp(max=_CLIP_M).mean()
-        loss = misfit + eikonal_weight * eikonal_loss(sdf, points[: max(1, batch // 4)])
+        f, gamma = field.sdf_and_reflectivity(points)
+        misfit = (f - sdf_target_m[index]).abs().clamp(max=_CLIP_M).mean()
+        loss = misfit + eikonal_weight * eikonal_loss(field.sdf, points[: max(1, batch // 4)])
+        if reflectivity_target is not None:
+            loss = loss + (gamma - reflectivity_target[index]).abs().mean()
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
