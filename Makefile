@@ -26,3 +26,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/operator_throughput.py
+	$(BIN)/python benchmarks/demo_matched_filter.py
+	$(BIN)/python benchmarks/quality.py --renderer physics
+	$(BIN)/python benchmarks/quality.py --renderer local
+	$(BIN)/python benchmarks/model_bias.py --renderer physics

@@ -1,4 +1,4 @@
-"""GeRaF reconstruction: rendering, losses, sampling, schedules, the trainer, the MF baseline."""
+"""GeRaF reconstruction: warm start, rendering, losses, sampling, schedules, the trainer."""
 
 from .config import ReconConfig, load_recon_config
 from .losses import data_loss, eikonal_loss
