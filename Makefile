@@ -30,3 +30,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/quality.py --renderer physics
 	$(BIN)/python benchmarks/quality.py --renderer local
 	$(BIN)/python benchmarks/model_bias.py --renderer physics
+	$(BIN)/python benchmarks/facing_lobe.py
