@@ -167,7 +167,8 @@ class Trainer:
         peak = local_peak_amplitude(mean_power, window)
         fit_to_image(self.field, self.points.to(self.device), torch.from_numpy(distance).flatten().to(self.device),
                      torch.from_numpy(peak).flatten().to(self.device), steps=ic.steps, lr=ic.lr, batch=ic.batch,
-                     eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator)
+                     eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator,
+                     progress=self.progress)
 
     def sigma_m(self, step: int) -> float:
         sc = self.config.sigma

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 from scipy import ndimage
+from tqdm.auto import tqdm
 
 from ..geometry import Grid
 from .losses import eikonal_loss
@@ -51,7 +52,8 @@ def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
 
 
 def fit_to_image(field, points_m: torch.Tensor, sdf_target_m: torch.Tensor, reflectivity_target: torch.Tensor, *,
-                 steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator) -> float:
+                 steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
+                 progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto targets (N,) at ``points_m`` (N, 3) by Adam.
 
     f by clipped L1 against ``sdf_target_m`` plus the Eikonal term (on a quarter of the
@@ -60,7 +62,7 @@ def fit_to_image(field, points_m: torch.Tensor, sdf_target_m: torch.Tensor, refl
     """
     optimizer = torch.optim.Adam(field.parameters(), lr=lr)
     residual = float("nan")
-    for _ in range(steps):
+    for _ in tqdm(range(steps), desc="warm start", disable=not progress, leave=False):
         index = torch.randint(len(points_m), (batch,), generator=generator).to(points_m.device)
         points = points_m[index]
         f, gamma = field.sdf_and_reflectivity(points)
