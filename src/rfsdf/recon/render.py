@@ -67,8 +67,10 @@ class PhysicsRenderer:
         self.kernel_fft = torch.fft.rfftn(kernels, s=self.fft_shape, dim=(1, 2, 3))
 
     @classmethod
-    def from_acquisition(cls, acquisition: Acquisition, grid: Grid, psf_radius_m: float) -> "PhysicsRenderer":
-        """Compute each view's PSF around the grid's central voxel through the operator."""
+    def from_acquisition(cls, acquisition: Acquisition, grid: Grid, psf_radius_m: float,
+                         device: torch.device | str = "cpu") -> "PhysicsRenderer":
+        """Compute each view's PSF around the grid's central voxel through the operator (on the
+        CPU, once); the kernels then live on ``device``, where the intensities will be."""
         voxel = grid.voxel_m
         radius = max(1, int(round(psf_radius_m / float(voxel.max()))))
         centre_index = np.asarray(grid.shape) // 2
@@ -79,7 +81,7 @@ class PhysicsRenderer:
         for v in range(acquisition.shape[0]):
             psf = point_spread(acquisition.view(v), centre, kernel_grid).per_view[0]
             kernels.append(psf.abs() ** 2)
-        return cls(grid, torch.stack(kernels))
+        return cls(grid, torch.stack(kernels).to(device))
 
     def __call__(self, intensity: torch.Tensor, views: torch.Tensor) -> torch.Tensor:
         """intensity : (v, nx, ny, nz) for the views ``views`` (v,); returns (v, nx, ny, nz)."""
@@ -90,8 +92,9 @@ class PhysicsRenderer:
         return full[:, r:r + nx, r:r + ny, r:r + nz].clamp(min=0)  # FFT round-off dips below 0
 
 
-def make_renderer(name: str, acquisition: Acquisition, grid: Grid, psf_radius_m: float):
-    """The renderer called ``name`` ('physics' or 'local') for this acquisition and grid."""
+def make_renderer(name: str, acquisition: Acquisition, grid: Grid, psf_radius_m: float,
+                  device: torch.device | str = "cpu"):
+    """The renderer called ``name`` ('physics' or 'local') for this acquisition and grid, rendering on ``device``."""
     if name == "local":
         return LocalRenderer()
-    return PhysicsRenderer.from_acquisition(acquisition, grid, psf_radius_m)
+    return PhysicsRenderer.from_acquisition(acquisition, grid, psf_radius_m, device)

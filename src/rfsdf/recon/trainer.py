@@ -102,7 +102,7 @@ class Trainer:
             self.optimizer, lambda step: exponential_decay(step, tc.steps, 1.0, tc.lr_end / tc.lr))
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = make_renderer(config.render.renderer, problem.acquisition, problem.grid,
-                                      config.render.psf_radius_m)
+                                      config.render.psf_radius_m, self.device)
         self.points = problem.grid.points()
         self.voxel_m = float(problem.grid.voxel_m.max())
         self.probabilities = data_voxel_probabilities(problem.observed, config.sampling.data_focus)
