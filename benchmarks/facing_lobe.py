@@ -12,12 +12,10 @@ import json
 from pathlib import Path
 
 import torch
+from demo_data import demo_data
 
-from rfsdf.demo import DemoSettings
-from rfsdf.geometry import Grid, normals
-from rfsdf.radar import load_radar, matched_filter, simulate
+from rfsdf.geometry import normals
 from rfsdf.recon import Problem, delta_sigma, facing_weights, make_renderer
-from rfsdf.scene import load_scene
 
 EXPONENTS = (0, 1, 4, 16, 64)
 
@@ -27,11 +25,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/facing_lobe.json"))
     args = parser.parse_args()
 
-    demo = DemoSettings()
-    scene = load_scene(demo.scene)
-    measurements = simulate(scene, load_radar(demo.radar), seed=demo.seed)
-    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, demo.voxel_m)
-    problem = Problem.from_image(matched_filter(measurements, grid), measurements.acquisition)
+    data = demo_data()
+    demo, scene, measurements, grid = data.settings, data.scene, data.measurements, data.image.grid
+    problem = Problem.from_image(data.image, measurements.acquisition)
     points = grid.points()
     with torch.no_grad():
         surface = delta_sigma(scene.sdf(points), demo.voxel_m) ** 2

@@ -14,15 +14,12 @@ import tempfile
 from pathlib import Path
 
 import torch
+from demo_data import demo_data
 
-from rfsdf.demo import DemoSettings
-from rfsdf.geometry import Grid
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_mesh
-from rfsdf.radar import load_radar, matched_filter, simulate
 from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.recon.warm_start import fit_to_image
-from rfsdf.scene import load_scene
 
 
 def main() -> None:
@@ -32,11 +29,9 @@ def main() -> None:
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/bias-{args.renderer}.json")
 
-    demo = DemoSettings()
-    scene = load_scene(demo.scene)
-    measurements = simulate(scene, load_radar(demo.radar), seed=demo.seed)
-    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, demo.voxel_m)
-    problem = Problem.from_image(matched_filter(measurements, grid), measurements.acquisition)
+    data = demo_data()
+    demo, scene, measurements, grid = data.settings, data.scene, data.measurements, data.image.grid
+    problem = Problem.from_image(data.image, measurements.acquisition)
     # The truth replaces the image warm start: method "sphere" makes fit() skip its own.
     config = ReconConfig.model_validate({"render": {"renderer": args.renderer}, "init": {"method": "sphere"}})
     ic = ReconConfig().init

@@ -1,0 +1,28 @@
+"""The default demo's data, as the benchmarks that analyse it need them: the scene, its
+simulated measurements (the demo's seed) and their matched-filter image on the demo grid."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rfsdf.demo import DemoSettings
+from rfsdf.geometry import Grid
+from rfsdf.radar import Image, Measurements, load_radar, matched_filter, simulate
+from rfsdf.scene import Scene, load_scene
+
+
+@dataclass(frozen=True)
+class DemoData:
+    settings: DemoSettings
+    scene: Scene
+    measurements: Measurements
+    image: Image
+
+
+def demo_data(settings: DemoSettings = DemoSettings()) -> DemoData:
+    """Simulate and image the demo scene exactly as ``rfsdf demo`` does (about 40 s on 2 cores)."""
+    scene = load_scene(settings.scene)
+    measurements = simulate(scene, load_radar(settings.radar), seed=settings.seed,
+                            max_samples=settings.max_surface_samples)
+    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
+    return DemoData(settings, scene, measurements, matched_filter(measurements, grid))
