@@ -31,3 +31,5 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/quality.py --renderer local
 	$(BIN)/python benchmarks/model_bias.py --renderer physics
 	$(BIN)/python benchmarks/facing_lobe.py
+	$(BIN)/python benchmarks/coherent_model.py
+	$(BIN)/python benchmarks/object_contrast.py

@@ -14,7 +14,11 @@ radar behind it. Two renderers turn I_v = w_v |c|^2 into predicted MF power P_v:
   Two approximations, both measured in the README: the PSF is taken as shift-invariant
   over the scene, and sums are incoherent in power (speckle-averaged): voxel-sampled
   reflectivity at spacings above lambda/4 cannot carry the carrier phase, so coherent
-  interference between voxels would be aliasing, not physics.
+  interference between voxels would be aliasing, not physics. Nor can the shell
+  delta_sigma(f) itself be rendered coherently at these sigmas: across a flat surface it
+  returns exp(-2 k^2 sigma^2) of a sheet's amplitude (the Gaussian's Fourier transform at
+  the round-trip wavenumber 2k), e^-197 at 79 GHz and sigma = 6 mm. A coherent model needs
+  the geometry within about lambda/8 (``benchmarks/coherent_model.py``).
 """
 
 from __future__ import annotations
