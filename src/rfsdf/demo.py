@@ -28,7 +28,7 @@ from .atomic import atomic_path
 from .baseline import best_threshold_mesh
 from .geometry import Grid
 from .mesh import export_mesh, extract_mesh
-from .metrics import evaluate_mesh
+from .metrics import evaluate_mesh, with_scene_iou
 from .radar import check_radar_for_scene, load_radar, matched_filter, simulate, write_image, write_measurements
 from .recon import Problem, ReconConfig, Trainer
 from .scene import load_scene
@@ -106,7 +106,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     baseline = best_threshold_mesh(power, grid, scene.ground_truth_mesh(), samples=settings.metric_samples,
                                    seed=settings.seed)
     export_mesh(baseline.mesh, out / "baseline.ply")
-    baseline_metrics = evaluate_mesh(baseline.mesh, scene, samples=settings.metric_samples, seed=settings.seed)
+    baseline_metrics = with_scene_iou(baseline.metrics, baseline.mesh, scene, seed=settings.seed)
     lap("baseline_s")
 
     plot_sdf_slices(neural_field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,

@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF
 
-__all__ = ["MeshMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh"]
+__all__ = ["MeshMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh", "with_scene_iou"]
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,12 @@ def evaluate_mesh(mesh: trimesh.Trimesh, scene, *, threshold_m: float = 0.005, s
     """Metrics of ``mesh`` against a :class:`~rfsdf.scene.Scene`'s true surfaces; the IoU is
     filled in when the mesh is closed (an open mesh has no inside)."""
     metrics = compare_meshes(mesh, scene.ground_truth_mesh(), threshold_m=threshold_m, samples=samples, seed=seed)
+    return with_scene_iou(metrics, mesh, scene, seed=seed)
+
+
+def with_scene_iou(metrics: MeshMetrics, mesh: trimesh.Trimesh, scene, *, seed: int = 0) -> MeshMetrics:
+    """``metrics`` of ``mesh`` with its volumetric IoU against ``scene`` filled in when the mesh
+    is closed (for surface metrics already computed, e.g. by the baseline's sweep)."""
     if not mesh.is_watertight:
         return metrics
     iou = volumetric_iou(mesh, lambda p: scene.sdf(p) < 0, scene.lower_m, scene.upper_m, seed=seed)
