@@ -51,4 +51,4 @@ def best_threshold_mesh(power: np.ndarray, grid: Grid, reference: trimesh.Trimes
             best = BaselineResult(fraction, mesh, metrics, sweep)
     if best is None:
         raise ValueError("no threshold of the sweep gives a surface inside the box")
-    return BaselineResult(best.fraction, best.mesh, best.metrics, sweep)
+    return best  # its sweep is the dict filled in above, complete now
