@@ -18,7 +18,7 @@ import torch
 from demo_data import demo_data
 
 from rfsdf.radar import Measurements, SensingOperator, matched_filter
-from rfsdf.radar.simulate import surface_reflectivity
+from rfsdf.radar.simulate import view_reflectivities
 
 ERRORS_IN_WAVELENGTHS = (0.0, 1 / 16, 1 / 8, 1 / 4)
 
@@ -33,9 +33,7 @@ def main() -> None:
     wavelength = acq.wavelength_m
     samples = data.scene.sample_surface(wavelength / 3, seed=data.settings.seed + 1,
                                         max_samples=data.settings.max_surface_samples)
-    c = torch.stack([surface_reflectivity(data.scene, samples.points, samples.normals, samples.area_m2,
-                                          samples.object_index, acq.tx_m[v].mean(0), acq.rx_m[v].mean(0),
-                                          acq.center_frequency_hz) for v in range(acq.shape[0])])
+    c = view_reflectivities(data.scene, samples, acq)
     operator = SensingOperator(acq)
     observed = image.per_view.flatten(1).abs()
     result: dict = {"wavelength_mm": wavelength * 1e3, "surface_samples": len(samples.points),

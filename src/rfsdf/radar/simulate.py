@@ -16,12 +16,12 @@ from tqdm.auto import tqdm
 
 from ..geometry import sphere_trace
 from ..materials import fresnel
-from ..scene import Scene
-from .acquisition import Measurements
+from ..scene import Scene, SurfaceSamples
+from .acquisition import Acquisition, Measurements
 from .operator import SensingOperator
 from .system import Radar
 
-__all__ = ["simulate", "surface_reflectivity", "add_noise"]
+__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise"]
 
 _SHADOW_OFFSET = 4.0  # start shadow rays this many trace tolerances off the surface
 _TRACE_EPS_M = 1e-5
@@ -56,6 +56,18 @@ def surface_reflectivity(
     return (gamma * lobe * area_m2.double() * visible).to(torch.complex64)
 
 
+def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acquisition, *,
+                        progress: bool = False, **scattering) -> torch.Tensor:
+    """(V, Q) complex64: :func:`surface_reflectivity` of the samples in each view, at the
+    centre frequency, from that view's Tx and Rx phase centres; ``scattering`` as there."""
+    acq = acquisition
+    return torch.stack([
+        surface_reflectivity(scene, samples.points, samples.normals, samples.area_m2, samples.object_index,
+                             acq.tx_m[v].mean(0), acq.rx_m[v].mean(0), acq.center_frequency_hz, **scattering)
+        for v in tqdm(range(acq.shape[0]), desc="scattering", disable=not progress, leave=False)
+    ])
+
+
 def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tuple[torch.Tensor, float]:
     """y + circular complex Gaussian noise with mean|y|^2 / sigma^2 = 10^(snr/10); returns (y, sigma)."""
     sigma = float(torch.sqrt((y.abs() ** 2).mean() / 10 ** (snr_db / 10)))
@@ -76,13 +88,8 @@ def simulate(
     acq = radar.acquisition()
     spacing = spacing_m or acq.wavelength_m / 3
     samples = scene.sample_surface(spacing, seed=seed, max_samples=max_samples)
-    c = torch.stack([
-        surface_reflectivity(scene, samples.points, samples.normals, samples.area_m2, samples.object_index,
-                             acq.tx_m[v].mean(0), acq.rx_m[v].mean(0), acq.center_frequency_hz,
-                             specular_exponent=specular_exponent, diffuse_weight=diffuse_weight,
-                             polarization=polarization, shadows=shadows)
-        for v in tqdm(range(acq.shape[0]), desc="scattering", disable=not progress, leave=False)
-    ])
+    c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
+                            diffuse_weight=diffuse_weight, polarization=polarization, shadows=shadows)
     y = SensingOperator(acq).forward(samples.points, c, progress=progress)
     noise_std = None
     if radar.snr_db is not None:
