@@ -1,8 +1,9 @@
 """Fitting a RadarField to matched-filter images: the GeRaF training loop.
 
-A fresh run first warm-starts f from the thresholded MF image (see ``warm_start``). Each step: evaluate f and Gamma on the band of voxels near the current zero level set,
-render c = Gamma delta_sigma(f) into predicted MF power for a few random views, compare
-with the observed MF power on a batch of voxels, add lambda * Eikonal, take an AdamW step.
+A fresh run first warm-starts f from the thresholded MF image (see ``warm_start``). Each
+step: evaluate f and Gamma on the band of voxels near the current zero level set, render
+c = Gamma delta_sigma(f) into predicted MF power for a few random views, compare with the
+observed MF power on a batch of voxels, add lambda * Eikonal, take an AdamW step.
 Checkpoints are atomic and hold everything needed to continue bit for bit (network,
 optimiser, schedule, random generator, band, log), so ``resume=True`` after a kill gives
 the same result as an uninterrupted run. A NaN/Inf loss stops the run with a clear error

@@ -26,13 +26,18 @@ __all__ = ["image_signed_distance", "local_peak_amplitude", "fit_to_image"]
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
 
 
+def _amplitude(power: np.ndarray) -> np.ndarray:
+    """sqrt(power) in float64; negative values (round-off) count as 0."""
+    return np.sqrt(np.maximum(np.asarray(power, float), 0))
+
+
 def image_signed_distance(power: np.ndarray, grid: Grid, threshold: float) -> np.ndarray:
     """(nx, ny, nz) float32 signed distance [m] to the set where sqrt(power) >= threshold * max.
 
     Negative inside. Distances run between voxel centres, so the boundary sits half a voxel
     outside the last inside voxel. Raises ValueError when the set is empty or the whole box.
     """
-    amplitude = np.sqrt(np.maximum(np.asarray(power, float), 0))
+    amplitude = _amplitude(power)
     inside = amplitude >= threshold * amplitude.max() if amplitude.max() > 0 else np.zeros(amplitude.shape, bool)
     if not inside.any() or inside.all():
         raise ValueError(f"MF threshold {threshold:g} of the peak amplitude selects "
@@ -46,7 +51,7 @@ def image_signed_distance(power: np.ndarray, grid: Grid, threshold: float) -> np
 
 def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
     """(nx, ny, nz) float32 max of sqrt(power) over a cube of ``window_voxels``, peak 1."""
-    amplitude = np.sqrt(np.maximum(np.asarray(power, float), 0))
+    amplitude = _amplitude(power)
     peak = ndimage.maximum_filter(amplitude, size=max(1, int(window_voxels)))
     return (peak / max(float(peak.max()), 1e-30)).astype(np.float32)
 
