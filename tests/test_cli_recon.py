@@ -58,3 +58,31 @@ def test_bad_inputs_get_one_line(tmp_path):
     result = runner.invoke(main, ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
                                   "--out", str(tmp_path / "r"), "--config", str(tmp_path / "bad.toml")])
     assert result.exit_code == 2 and "train.steps" in result.output
+
+
+class _Payload:
+    """Unpickling this object calls open(path, 'w'): it would create a file."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        return (open, (self.path, "w"))
+
+
+def test_a_crafted_checkpoint_runs_no_code(tmp_path):
+    _files(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    marker = tmp_path / "pwned"
+    torch.save({"step": 0, "field": _Payload(marker)}, run / "checkpoint.pt")
+    runner = CliRunner()
+    for args in (["mesh", str(run), "--out", str(tmp_path / "m.ply")],
+                 ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
+                  "--out", str(run), "--config", str(tmp_path / "tiny.toml"), "--resume"]):
+        result = runner.invoke(main, args)
+        assert result.exit_code == 2, result.output
+        assert result.output.startswith("error: ") and result.output.count("\n") == 1, result.output
+        assert "not a readable rfsdf checkpoint" in result.output
+        assert not marker.exists()
+    assert not (tmp_path / "m.ply").exists()

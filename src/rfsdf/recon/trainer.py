@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
+import pickle
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -35,7 +36,7 @@ from .sampling import band_mask, data_voxel_probabilities, eikonal_points, sampl
 from .schedules import exponential_decay, sigma_at
 from .warm_start import fit_to_image, image_signed_distance, local_peak_amplitude
 
-__all__ = ["Problem", "Trainer", "load_field", "CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME"]
+__all__ = ["Problem", "Trainer", "load_field", "read_checkpoint", "CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME"]
 
 CHECKPOINT_NAME = "checkpoint.pt"
 CONFIG_NAME = "config.toml"
@@ -142,7 +143,7 @@ class Trainer:
         return path
 
     def load(self) -> None:
-        state = torch.load(self.checkpoint_path, map_location=self.device, weights_only=False)
+        state = read_checkpoint(self.checkpoint_path, self.device)
         if state["config"] != self.config.model_dump():
             raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made with another config; "
                              "resume with the run's own config.toml")
@@ -256,10 +257,30 @@ def load_field(run_dir) -> RadarField:
     path = Path(run_dir) / CHECKPOINT_NAME
     if not path.exists():
         raise RfsdfError(f"{run_dir}: no {CHECKPOINT_NAME}; is this a run folder from `rfsdf reconstruct`?")
+    state = read_checkpoint(path, "cpu")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=False)
         field = RadarField(**state["field_kwargs"])
         field.load_state_dict(state["field"])
-    except (RuntimeError, KeyError, EOFError) as exc:
+    except (RuntimeError, KeyError, TypeError) as exc:
         raise RfsdfError(f"{path}: not a readable rfsdf checkpoint ({exc})") from None
     return field.eval()
+
+
+def read_checkpoint(path, device) -> dict:
+    """The state dict of a checkpoint file, loaded as data only.
+
+    ``weights_only=True``: the unpickler accepts tensors, numbers, strings and containers
+    and refuses everything else, so a crafted checkpoint cannot run code (a plain
+    ``torch.load`` would execute whatever a pickle in the file asks for).
+    """
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)
+    except pickle.UnpicklingError:
+        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint (it holds objects other than tensors, "
+                         "numbers and strings; refused without running them)") from None
+    except Exception as exc:  # noqa: BLE001 - any other failure to read it means "not a checkpoint"
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint ({reason})") from None
+    if not isinstance(state, dict):
+        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint (holds a {type(state).__name__}, not a dict)")
+    return state
