@@ -6,7 +6,17 @@ one per Rx, so for each (view, frequency) A c is a (T, Q) @ diag(c) @ (Q, R) pro
 A^H y a (T, R) @ (R, Q) product: complex GEMMs instead of T*R*K*Q exponentials.
 Phases are computed in float64 and wrapped before the cast to complex64 (at 80 GHz over
 0.8 m the phase is ~1300 rad, which float32 would resolve to only ~1e-4 rad).
-Everything is differentiable in c, in y and in the point positions.
+
+Gradients. ``forward`` is differentiable in c and in the point positions, ``adjoint`` in y.
+Both have hand-written backward passes that recompute the factors chunk by chunk, so a
+backward pass needs no more memory than a forward one (autograd through the factors would
+keep every chunk's (V, K, T + R, Q) phasors alive). With g = dL/dy (PyTorch's convention
+for complex tensors) the position gradient is
+
+    dL/dp_q = Re( c_q sum_m conj(g_m) A_mq [grad log a_i + grad log b_j - j k_k (u_iq + u_qj)] )
+
+with u the unit vectors from the elements to the point: two more GEMMs per chunk. Inputs
+in float64 / complex128 are computed in double precision throughout (gradcheck).
 """
 
 from __future__ import annotations
@@ -23,6 +33,11 @@ __all__ = ["SensingOperator"]
 
 # Small chunks keep the factors cache-resident: on 2 cores 32 MiB ran the adjoint 2x faster than 256 MiB.
 _DEFAULT_BUDGET_BYTES = 32 * 2**20
+_BACKWARD_BUFFERS = 3  # the backward pass holds factors, GEMM products and their element-wise products
+
+
+def _complex_dtype(real: torch.dtype) -> torch.dtype:
+    return torch.complex128 if real == torch.float64 else torch.complex64
 
 
 class SensingOperator:
@@ -41,26 +56,38 @@ class SensingOperator:
         self._uniform = len(steps) > 0 and bool((steps - steps.mean()).abs().max() <= 1e-9 * steps.mean().abs())
 
     # Factors ------------------------------------------------------------------------
-    def _geometry(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor):
-        """Distances d (v, E, q) float64 [m] and amplitudes pattern / d (v, E, q) float32.
+    def _geometry(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor,
+                  derivatives: bool = False):
+        """Distances d (v, E, q) float64 [m] and amplitudes pattern / d (v, E, q) in the points' dtype.
 
         Elements (v, E, 3) to points (q, 3). The three coordinates are handled one at a
-        time: torch.linalg.norm over a last axis of 3 is several times slower.
+        time: torch.linalg.norm over a last axis of 3 is several times slower. With
+        ``derivatives`` also the unit vectors element -> point and grad_p log(amplitude),
+        both (v, E, q, 3) [1, 1/m].
         """
-        p = points.double()
+        real = points.dtype if points.dtype == torch.float64 else torch.float32
+        p = points.detach().double()
         e = positions.to(points.device, torch.float64)
         rel = [p[None, None, :, i] - e[:, :, None, i] for i in range(3)]
         d = torch.sqrt(rel[0] ** 2 + rel[1] ** 2 + rel[2] ** 2)
         amplitude = 1.0 / d if self.acq.spreading else torch.ones_like(d)
-        if self.acq.pattern_exponent > 0:
+        n = self.acq.pattern_exponent
+        if n > 0:
             b = boresight.to(points.device, torch.float64)
             cos = sum(rel[i] * b[:, None, None, i] for i in range(3)) / d
-            amplitude = amplitude * cos.clamp(min=0) ** self.acq.pattern_exponent
-        return d, amplitude.float()
+            amplitude = amplitude * cos.clamp(min=0) ** n
+        if not derivatives:
+            return d, amplitude.to(real)
+        unit = torch.stack(rel, dim=-1) / d[..., None]
+        dlog = -unit / d[..., None] if self.acq.spreading else torch.zeros_like(unit)
+        if n > 0:
+            lit = (cos > 0)[..., None]
+            pattern = n * (b[:, None, None, :] - cos[..., None] * unit) / (d * cos.clamp(min=1e-12))[..., None]
+            dlog = dlog + torch.where(lit, pattern, torch.zeros_like(pattern))
+        return d, amplitude.to(real), unit.to(real), dlog.to(real)
 
-    def _factor(self, positions: torch.Tensor, boresight: torch.Tensor, points: torch.Tensor,
-                conjugate: bool = False) -> torch.Tensor:
-        """(v, K, E, q) complex64: pattern / d * exp(-j k_k d) from elements (v, E, 3) to points (q, 3).
+    def _phasors(self, d: torch.Tensor, amplitude: torch.Tensor, conjugate: bool) -> torch.Tensor:
+        """(v, K, E, q) complex: amplitude * exp(-+j k_k d).
 
         ``conjugate`` builds exp(+j k_k d) directly: multiplying by a lazily conjugated
         tensor is about 2.5x slower than by a plain one, which matters in the adjoint.
@@ -69,10 +96,9 @@ class SensingOperator:
         the K phasors are exp(-j k_0 d) s^k with s = exp(-j dk d), K - 1 complex products, so
         trigonometry runs on (v, E, q) only; otherwise every phase is formed directly.
         """
-        d, amplitude = self._geometry(positions, boresight, points)
-        k = (2 * math.pi / SPEED_OF_LIGHT) * self.acq.frequencies_hz.to(points.device)
+        k = self._wavenumbers(d.device)
         sign = 1.0 if conjugate else -1.0
-        wrap = lambda phase: torch.remainder(sign * phase, 2 * math.pi).float()  # noqa: E731
+        wrap = lambda phase: torch.remainder(sign * phase, 2 * math.pi).to(amplitude.dtype)  # noqa: E731
         if self._uniform:
             phasors = [torch.polar(amplitude, wrap(k[0] * d))]  # (v, E, q) each
             step = torch.polar(torch.ones_like(amplitude), wrap((k[1] - k[0]) * d))
@@ -82,54 +108,51 @@ class SensingOperator:
         phase = wrap(k[None, :, None, None] * d[:, None])
         return torch.polar(amplitude[:, None].expand_as(phase), phase)
 
-    def _chunks(self, num_points: int):
+    def _wavenumbers(self, device) -> torch.Tensor:
+        """(K,) float64 free-space wavenumbers 2 pi f / c [rad/m]."""
+        return (2 * math.pi / SPEED_OF_LIGHT) * self.acq.frequencies_hz.to(device)
+
+    def _chunks(self, num_points: int, budget: int | None = None):
         """Yield (view slice, point slice) pairs sized to the memory budget."""
+        budget = self.budget if budget is None else budget
         v_total, t, r, k = self.acq.shape
         bytes_per_view_point = k * (t + r) * 24  # complex64 factors + float32 phase temporaries
-        points_per_chunk = max(1, min(num_points, self.budget // bytes_per_view_point))
-        views_per_chunk = max(1, min(v_total, self.budget // (bytes_per_view_point * points_per_chunk)))
+        points_per_chunk = max(1, min(num_points, budget // bytes_per_view_point))
+        views_per_chunk = max(1, min(v_total, budget // (bytes_per_view_point * points_per_chunk)))
         for v0 in range(0, v_total, views_per_chunk):
             for q0 in range(0, num_points, points_per_chunk):
                 yield slice(v0, v0 + views_per_chunk), slice(q0, q0 + points_per_chunk)
 
     def _factors(self, views: slice, points: torch.Tensor, conjugate: bool = False):
+        """Tx factor U (v, K, T, q) and Rx factor W (v, K, R, q) of the views ``views``."""
         acq = self.acq
-        return (self._factor(acq.tx_m[views], acq.boresight[views], points, conjugate),
-                self._factor(acq.rx_m[views], acq.boresight[views], points, conjugate))
+        return tuple(self._phasors(*self._geometry(pos[views], acq.boresight[views], points), conjugate)
+                     for pos in (acq.tx_m, acq.rx_m))
 
     # Public operations ----------------------------------------------------------------
     def forward(self, points: torch.Tensor, c: torch.Tensor, *, progress: bool = False) -> torch.Tensor:
-        """y = A c : (V, T, R, K) complex64.
+        """y = A c : (V, T, R, K) complex64 (complex128 for float64 points).
 
         points : (Q, 3) [m], scene frame. c : (Q,) or (V, Q) complex reflectivities (one
         set for all views, or one per view, e.g. angle-dependent scattering).
+        Differentiable in ``c`` and ``points``.
         """
         points = as_points(points)
-        v_total, t, r, k = self.acq.shape
-        c = c.to(torch.complex64)
-        if c.shape not in ((points.shape[0],), (v_total, points.shape[0])):
+        v_total = self.acq.shape[0]
+        if tuple(c.shape) not in ((points.shape[0],), (v_total, points.shape[0])):
             raise ValueError(f"c must have shape (Q,) or (V, Q) = ({points.shape[0]},) or ({v_total}, {points.shape[0]}), got {tuple(c.shape)}")
-        c = c.expand(v_total, -1)
-        blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A c", disable=not progress, leave=False):
-            u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
-            y = torch.matmul(u * c[views, None, None, pts], w.transpose(-1, -2))  # (v, K, T, R)
-            blocks.setdefault(views.start, []).append(y)
-        y = torch.cat([sum(parts) for _, parts in sorted(blocks.items())], dim=0)
-        return y.permute(0, 2, 3, 1).contiguous()
+        c = c.to(_complex_dtype(points.dtype)).expand(v_total, -1)
+        return _ApplyA.apply(points, c, self, progress)
 
     def adjoint(self, y: torch.Tensor, points: torch.Tensor, *, per_view: bool = False, progress: bool = False) -> torch.Tensor:
-        """x = A^H y at ``points`` (Q, 3): (Q,) complex64, or (V, Q) with ``per_view``."""
+        """x = A^H y at ``points`` (Q, 3): (Q,) complex, or (V, Q) with ``per_view``.
+
+        Differentiable in ``y`` (not in the points: images are formed on fixed voxels).
+        """
         points = as_points(points)
         if tuple(y.shape) != self.acq.shape:
             raise ValueError(f"y must have shape (V, T, R, K) = {self.acq.shape}, got {tuple(y.shape)}")
-        y_kf = y.to(torch.complex64).permute(0, 3, 1, 2)  # (V, K, T, R)
-        blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A^H y", disable=not progress, leave=False):
-            u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
-            z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
-            blocks.setdefault(views.start, []).append((u_conj * z).sum(dim=(1, 2)))  # (v, q)
-        out = torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
+        out = _ApplyAH.apply(y.to(_complex_dtype(points.dtype)), points, self, progress)
         return out if per_view else out.sum(dim=0)
 
     def column_norms_sq(self, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
@@ -146,3 +169,82 @@ class SensingOperator:
                 rx = self._geometry(acq.rx_m[views], acq.boresight[views], points[pts])[1]
                 out[views, pts] = len(acq.frequencies_hz) * (tx**2).sum(1) * (rx**2).sum(1)
         return out if per_view else out.sum(dim=0)
+
+    # The passes behind forward/adjoint and their gradients -------------------------------
+    @torch.no_grad()
+    def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False) -> torch.Tensor:
+        """A c for per-view c (V, Q): (V, T, R, K)."""
+        blocks: dict[int, list[torch.Tensor]] = {}
+        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A c", disable=not progress, leave=False):
+            u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
+            y = torch.matmul(u * c[views, None, None, pts], w.transpose(-1, -2))  # (v, K, T, R)
+            blocks.setdefault(views.start, []).append(y)
+        y = torch.cat([sum(parts) for _, parts in sorted(blocks.items())], dim=0)
+        return y.permute(0, 2, 3, 1).contiguous()
+
+    @torch.no_grad()
+    def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False) -> torch.Tensor:
+        """A^H y per view: (V, Q)."""
+        y_kf = y.permute(0, 3, 1, 2)  # (V, K, T, R)
+        blocks: dict[int, list[torch.Tensor]] = {}
+        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A^H y", disable=not progress, leave=False):
+            u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
+            z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
+            blocks.setdefault(views.start, []).append((u_conj * z).sum(dim=(1, 2)))  # (v, q)
+        return torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
+
+    @torch.no_grad()
+    def _apply_vjp(self, points: torch.Tensor, c: torch.Tensor, grad_y: torch.Tensor, need_points: bool):
+        """Gradients of a real loss with respect to c (V, Q) and points (Q, 3), given g = dL/dy."""
+        acq = self.acq
+        k = self._wavenumbers(points.device).to(points.dtype if points.dtype == torch.float64 else torch.float32)
+        g = grad_y.conj().permute(0, 3, 1, 2)  # (V, K, T, R)
+        grad_c = torch.zeros_like(c)
+        grad_points = torch.zeros(points.shape, dtype=points.dtype, device=points.device) if need_points else None
+        for views, pts in self._chunks(points.shape[0], self.budget // _BACKWARD_BUFFERS):
+            tx = self._geometry(acq.tx_m[views], acq.boresight[views], points[pts], derivatives=True)
+            rx = self._geometry(acq.rx_m[views], acq.boresight[views], points[pts], derivatives=True)
+            u, w = self._phasors(*tx[:2], False), self._phasors(*rx[:2], False)
+            g_v = g[views]
+            per_tx = u * torch.matmul(g_v, w)  # (v, K, T, q): sum_j conj(g) A over Rx
+            grad_c[views, pts] = per_tx.sum(dim=(1, 2)).conj()
+            if need_points:
+                per_rx = w * torch.matmul(g_v.transpose(-1, -2), u)  # (v, K, R, q): sum_i over Tx
+                total = 0
+                for per_element, (_, _, unit, dlog) in ((per_tx, tx), (per_rx, rx)):
+                    plain = per_element.sum(1)  # (v, E, q)
+                    weighted = (k[None, :, None, None] * per_element).sum(1)
+                    total = total + (plain[..., None] * dlog).sum(1) - 1j * (weighted[..., None] * unit).sum(1)
+                grad_points[pts] += (c[views, pts, None] * total).real.sum(0)
+        return grad_c, grad_points
+
+
+class _ApplyA(torch.autograd.Function):
+    """y = A(points) c with the memory-bounded backward of :meth:`SensingOperator._apply_vjp`."""
+
+    @staticmethod
+    def forward(ctx, points, c, op, progress):
+        ctx.save_for_backward(points, c)
+        ctx.op = op
+        return op._apply(points.detach(), c.detach(), progress)
+
+    @staticmethod
+    def backward(ctx, grad_y):
+        points, c = ctx.saved_tensors
+        grad_c, grad_points = ctx.op._apply_vjp(points.detach(), c.detach(), grad_y, ctx.needs_input_grad[0])
+        return grad_points, grad_c if ctx.needs_input_grad[1] else None, None, None
+
+
+class _ApplyAH(torch.autograd.Function):
+    """x = A^H y per view; its gradient in y is A applied to the gradient in x."""
+
+    @staticmethod
+    def forward(ctx, y, points, op, progress):
+        ctx.save_for_backward(points)
+        ctx.op = op
+        return op._apply_adjoint(y.detach(), points.detach(), progress)
+
+    @staticmethod
+    def backward(ctx, grad_x):
+        (points,) = ctx.saved_tensors
+        return ctx.op._apply(points.detach(), grad_x), None, None, None
