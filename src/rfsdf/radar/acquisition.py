@@ -80,6 +80,18 @@ class Acquisition:
         return Acquisition(self.tx_m[sel], self.rx_m[sel], self.frequencies_hz, self.boresight[sel],
                            self.pattern_exponent, self.spreading)
 
+    def thinned(self, step: int) -> Acquisition:
+        """A sparse sub-array: 1/``step`` of the Tx and of the Rx, step^2 fewer pairs.
+
+        The elements kept are a fixed pseudo-random choice (the same for every call), not
+        every step-th one: a regular thinning multiplies the element spacing and puts
+        grating lobes into the scene, a random one only raises the sidelobe floor.
+        """
+        if step < 1:
+            raise ValueError(f"element step must be >= 1, got {step}")
+        return Acquisition(self.tx_m[:, _kept(self.tx_m.shape[1], step)], self.rx_m[:, _kept(self.rx_m.shape[1], step)],
+                           self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading)
+
 
 @dataclass(frozen=True)
 class Measurements:
@@ -100,3 +112,17 @@ class Measurements:
         if not torch.isfinite(torch.view_as_real(self.data.to(torch.complex64))).all():
             raise ValueError("measurement data contain NaN or Inf")
         object.__setattr__(self, "data", self.data.to(torch.complex64))
+
+    def thinned(self, step: int) -> Measurements:
+        """The samples of :meth:`Acquisition.thinned` (the same sparse sub-array)."""
+        _, t, r, _ = self.acquisition.shape
+        data = self.data[:, _kept(t, step)][:, :, _kept(r, step)]
+        return Measurements(self.acquisition.thinned(step), data, self.noise_std, self.metadata)
+
+
+def _kept(count: int, step: int) -> torch.Tensor:
+    """Sorted indices of ceil(count / step) of ``count`` elements, a fixed pseudo-random choice."""
+    if step == 1:
+        return torch.arange(count)
+    keep = -(-count // step)
+    return torch.randperm(count, generator=torch.Generator().manual_seed(count))[:keep].sort().values

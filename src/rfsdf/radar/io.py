@@ -26,7 +26,8 @@ from .acquisition import Acquisition, Measurements
 from .imaging import Image
 from .waveform import fmcw_frequencies
 
-__all__ = ["FORMAT_VERSION", "write_measurements", "read_measurements", "write_image", "read_image", "import_fmcw"]
+__all__ = ["FORMAT_VERSION", "write_measurements", "read_measurements", "write_image", "read_image", "import_fmcw",
+           "parse_bounds"]
 
 FORMAT_VERSION = 1
 _MEASUREMENTS, _IMAGE = "rfsdf.measurements", "rfsdf.image"
@@ -145,3 +146,17 @@ def import_fmcw(path, *, conjugate: bool = False) -> Measurements:
         return Measurements(acq, data, None, {"source": str(path)})
     except ValueError as exc:
         raise RfsdfError(f"{path}: {exc}") from None
+
+
+def parse_bounds(text: str, source: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """'XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX' [m] -> (lower, upper); RfsdfError naming ``source``."""
+    try:
+        values = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        raise RfsdfError(f"{source}: bounds must be six numbers XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [m], got {text!r}") from None
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
+        raise RfsdfError(f"{source}: bounds must be six finite numbers XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [m], got {text!r}")
+    lower, upper = tuple(values[:3]), tuple(values[3:])
+    if not all(lo < hi for lo, hi in zip(lower, upper)):
+        raise RfsdfError(f"{source}: bounds need XMIN < XMAX, YMIN < YMAX and ZMIN < ZMAX, got {text!r}")
+    return lower, upper

@@ -79,5 +79,6 @@ def simulate(
     noise_std = None
     if radar.snr_db is not None:
         y, noise_std = add_noise(y, radar.snr_db, torch.Generator().manual_seed(seed + 1))
-    return Measurements(acq, y, noise_std, {"scene": scene.name, "radar": radar.name,
+    bounds = ",".join(f"{v:.9g}" for v in (*scene.lower_m, *scene.upper_m))
+    return Measurements(acq, y, noise_std, {"scene": scene.name, "radar": radar.name, "bounds_m": bounds,
                                             "surface_samples": str(len(samples.points))})

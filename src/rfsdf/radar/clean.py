@@ -1,0 +1,131 @@
+"""CLEAN: remove the array's sidelobes from matched-filter images, view by view.
+
+Högbom's CLEAN (1974) with the Cotton-Schwab split into minor and major cycles, using the
+exact, shift-variant point spread function of a near-field MIMO view (the sensing operator
+knows it). Minor cycle: take the brightest voxel q of the residual image r, record a
+component a = gain * r(q), subtract a * h_q, where h_q(x) = A(x)^H A(q) / ||A(x)||^2 is the
+column-normalised image of a unit point at q (h_q(q) = 1), evaluated in a window around q.
+Major cycle (every ``major_every`` components): the residual image is recomputed over the
+whole grid from the residual *data* y - A c, so the far sidelobes outside the windows are
+removed exactly too. Stops when the residual peak falls below ``stop_fraction`` of the dirty
+peak, or after ``max_components``.
+
+The cleaned view image is the components restored with a Gaussian beam of one voxel
+(power), plus the residual power; the incoherent mean over views is what a radar engineer
+would threshold. Weak objects under a strong one's sidelobes survive it, where the raw MF
+image buries them (``benchmarks/object_contrast.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import ndimage
+from tqdm.auto import tqdm
+
+from ..geometry import Grid
+from .acquisition import Measurements
+from .operator import SensingOperator
+
+__all__ = ["CleanResult", "clean_view", "clean_image"]
+
+
+@dataclass(frozen=True)
+class CleanResult:
+    """CLEAN of every view of a measurement set on a grid.
+
+    component_index : list of V (C_v,) int64 voxel indices; component_amplitude : list of V
+    (C_v,) complex64 [image units]; residual : (V, nx, ny, nz) complex64 residual image;
+    per_view_power : (V, nx, ny, nz) float32 restored power of each view (components on a
+    one-voxel Gaussian beam + residual power).
+    """
+
+    grid: Grid
+    component_index: list
+    component_amplitude: list
+    residual: torch.Tensor
+    per_view_power: torch.Tensor
+
+    @property
+    def power(self) -> torch.Tensor:
+        """(nx, ny, nz) float32 mean over views of the restored power."""
+        return self.per_view_power.mean(0)
+
+
+def _window(grid: Grid, centre: int, radius: int) -> torch.Tensor:
+    """Flat indices (W,) of the voxels within ``radius`` voxels (cube) of voxel ``centre``."""
+    nx, ny, nz = grid.shape
+    i, j, k = centre // (ny * nz), (centre // nz) % ny, centre % nz
+    ranges = [torch.arange(max(0, c - radius), min(n, c + radius + 1)) for c, n in zip((i, j, k), (nx, ny, nz))]
+    ii, jj, kk = torch.meshgrid(*ranges, indexing="ij")
+    return ((ii * ny + jj) * nz + kk).flatten()
+
+
+def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float = 0.3,
+               stop_fraction: float = 0.05, max_components: int = 300, window_m: float = 0.03,
+               major_every: int = 50):
+    """CLEAN one view: (component indices (C,), amplitudes (C,) complex, residual image (N,) complex).
+
+    The images are column-normalised MF images c_hat = A^H y / ||A||^2 on the voxel centres
+    of ``grid``; ``window_m`` is the half-width of the minor cycle's PSF window [m].
+    """
+    if not 0 < gain <= 1:
+        raise ValueError(f"CLEAN loop gain must be in (0, 1], got {gain}")
+    op = SensingOperator(measurements.acquisition.view(view))
+    y = measurements.data[view:view + 1]
+    voxels = grid.points()
+    norms = op.column_norms_sq(voxels)
+    seen = norms > 0
+    safe = torch.where(seen, norms, torch.ones_like(norms))
+
+    def image(data, index=slice(None)):
+        return torch.where(seen[index], op.adjoint(data, voxels[index]) / safe[index], 0.0)
+
+    residual = image(y)
+    stop = stop_fraction * float(residual.abs().max())
+    radius = max(1, int(round(window_m / float(np.max(grid.voxel_m)))))
+    indices: list[int] = []
+    amplitudes: list[complex] = []
+    with torch.no_grad():
+        while len(indices) < max_components:
+            q = int(residual.abs().argmax())
+            if float(residual[q].abs()) <= stop:
+                break
+            amplitude = gain * residual[q]
+            window = _window(grid, q, radius)
+            unit = op.forward(voxels[q:q + 1], torch.ones(1, dtype=torch.complex64))
+            residual[window] -= amplitude * image(unit, window)
+            indices.append(q)
+            amplitudes.append(complex(amplitude))
+            if len(indices) % major_every == 0:
+                # Exact residual from the residual data. A point of reflectivity a at q images
+                # to a at q (column normalisation), so a component's data are a * A_q.
+                c = torch.tensor(amplitudes, dtype=torch.complex64)
+                residual = image(y - op.forward(voxels[torch.tensor(indices)], c))
+    return torch.tensor(indices, dtype=torch.long), torch.tensor(amplitudes, dtype=torch.complex64), residual
+
+
+def clean_image(measurements: Measurements, grid: Grid, *, progress: bool = False, **options) -> CleanResult:
+    """CLEAN every view (options as :func:`clean_view`) and restore the incoherent power image."""
+    views = measurements.acquisition.shape[0]
+    indices, amplitudes, residuals, restored = [], [], [], []
+    for v in tqdm(range(views), desc="CLEAN", disable=not progress, leave=False):
+        index, amplitude, residual = clean_view(measurements, v, grid, **options)
+        indices.append(index)
+        amplitudes.append(amplitude)
+        residuals.append(residual.reshape(grid.shape))
+        components = np.zeros(grid.size, dtype=complex)
+        np.add.at(components, index.numpy(), amplitude.numpy())
+        beam = ndimage.gaussian_filter(components.real.reshape(grid.shape), 1.0) ** 2 + \
+            ndimage.gaussian_filter(components.imag.reshape(grid.shape), 1.0) ** 2
+        restored.append(torch.from_numpy(beam / _beam_peak() + residual.abs().reshape(grid.shape).numpy() ** 2).float())
+    return CleanResult(grid, indices, amplitudes, torch.stack(residuals), torch.stack(restored))
+
+
+def _beam_peak() -> float:
+    """Peak of a unit component filtered by the one-voxel Gaussian, squared (restored peaks = |a|^2)."""
+    impulse = np.zeros((9, 9, 9))
+    impulse[4, 4, 4] = 1.0
+    return float(ndimage.gaussian_filter(impulse, 1.0).max() ** 2)
