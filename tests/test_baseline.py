@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from rfsdf.baseline import best_threshold_mesh, threshold_mesh
+from rfsdf.baseline import best_threshold_mesh, detection_mesh, threshold_mesh
 from rfsdf.geometry import Grid
 
 WIDTH = 0.02  # [m] of the Gaussian 'MF power' blob below
@@ -33,3 +33,24 @@ def test_sweep_keeps_the_fraction_nearest_the_truth():
     assert set(result.sweep) == {0.01, 0.1, 0.5} and min(result.sweep.values()) == result.metrics.chamfer_l1_mm
     with pytest.raises(ValueError, match="no threshold"):
         best_threshold_mesh(power, grid, truth, fractions=(1.5,))
+
+
+def test_detection_cuts_each_bump_at_its_own_half_amplitude():
+    """Two Gaussian power bumps, one 20 dB weaker: a global threshold at half the strong one's
+    amplitude loses the weak one; the local rule cuts both at their own half-amplitude
+    sphere, radius w sqrt(4 ln 2) for power exp(-r^2 / 2 w^2), when the window reaches the peak."""
+    width = 0.008
+    grid = Grid((-0.08, -0.04, -0.04), (0.08, 0.04, 0.04), (96, 48, 48))
+    p = grid.points().numpy()
+    centres, heights = np.array([[-0.04, 0, 0], [0.04, 0, 0]]), (1.0, 0.01)
+    power = sum(h * np.exp(-((p - c) ** 2).sum(1) / (2 * width**2)) for c, h in zip(centres, heights))
+    power = power.reshape(grid.shape)
+    mesh = detection_mesh(power, grid, threshold=0.02, local_threshold=0.5, window_m=0.04)
+    radii = np.linalg.norm(mesh.vertices[:, None] - centres[None], axis=2)
+    nearest = radii.argmin(1)
+    assert set(nearest) == {0, 1}  # both bumps detected
+    for bump in (0, 1):
+        assert radii[nearest == bump, bump].mean() == pytest.approx(width * np.sqrt(4 * np.log(2)), abs=3e-4)
+    with pytest.raises(ValueError):
+        threshold_mesh(power, grid, 1.5)
+    assert len(threshold_mesh(power, grid, 0.25).split()) == 1  # the global rule keeps only the strong bump

@@ -19,8 +19,10 @@ def _files(tmp_path):
     write_measurements(tmp_path / "data.h5", m)
     write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
     (tmp_path / "tiny.toml").write_text(
-        '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nrenderer = "local"\n'
-        '[init]\nsteps = 20\nbatch = 256\n[sampling]\ndata_batch = 128\neikonal_batch = 64\n[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
+        '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nelement_step = 1\nrefresh_every = 3\n'
+        '[init]\nmethod = "mf"\nsteps = 20\nbatch = 256\n'
+        '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
+        '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
 
 
 def test_reconstruct_mesh_evaluate_and_resume(tmp_path):
@@ -45,6 +47,27 @@ def test_reconstruct_mesh_evaluate_and_resume(tmp_path):
     assert result.exit_code == 0, result.output
     metrics = json.loads(result.output)
     assert metrics["chamfer_l1_mm"] > 0 and 0 <= metrics["fscore"] <= 1
+
+
+def test_reconstruct_and_image_need_no_scene(tmp_path):
+    """Real data have no scene: the box comes from --bounds (or bounds stored in the file)."""
+    _files(tmp_path)
+    runner = CliRunner()
+    bounds = "-0.05,-0.05,-0.05,0.05,0.05,0.05"
+    result = runner.invoke(main, ["image", str(tmp_path / "data.h5"), "--out", str(tmp_path / "i.h5"),
+                                  "--bounds", bounds, "--voxel", "0.01"])
+    assert result.exit_code == 0, result.output
+    assert "(10, 10, 10) voxels" in result.output
+    result = runner.invoke(main, ["reconstruct", str(tmp_path / "data.h5"), "--out", str(tmp_path / "run"),
+                                  "--bounds", bounds, "--voxel", "0.01", "--config", str(tmp_path / "tiny.toml")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "run" / "mesh.ply").exists()
+    result = runner.invoke(main, ["image", str(tmp_path / "data.h5"), "--out", str(tmp_path / "j.h5")])
+    assert result.exit_code == 2 and "pass --bounds" in result.output
+    for bad in ("1,2,3", "0,0,0,-1,1,1", "a,b,c,d,e,f", "0,0,0,nan,1,1"):
+        result = runner.invoke(main, ["image", str(tmp_path / "data.h5"), "--out", str(tmp_path / "k.h5"), "--bounds", bad])
+        assert result.exit_code == 2 and result.output.startswith("error: --bounds") and "Traceback" not in result.output
+        assert not (tmp_path / "k.h5").exists()
 
 
 def test_bad_inputs_get_one_line(tmp_path):

@@ -5,22 +5,53 @@ from click.testing import CliRunner
 
 from rfsdf.cli import main
 
+METHODS = ("neural", "neural_warm_start", "mf_threshold", "clean_threshold", "clean_detection")
+
 
 def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
     runner = CliRunner()
     out = tmp_path / "demo"
     result = runner.invoke(main, ["demo", "--quick", "--out", str(out)])
     assert result.exit_code == 0, result.output
-    for name in ("measurements.h5", "image.h5", "scene-slices.png", "image-mip.png", "neural.ply", "baseline.ply",
-                 "recon-slices.png", "training.png", "metrics.json", "run/checkpoint.pt", "run/log.csv"):
+    for name in ("measurements.h5", "image.h5", "scene-slices.png", "image-mip.png", "clean-mip.png", "neural.ply",
+                 "neural-warm-start.ply",
+                 "mf-threshold.ply", "clean-threshold.ply", "clean-detection.ply", "recon-slices.png", "training.png",
+                 "metrics.json", "run/checkpoint.pt", "run/log.csv"):
         assert (out / name).exists(), name
     metrics = json.loads((out / "metrics.json").read_text())
-    for method in ("neural", "baseline"):
-        assert math.isfinite(metrics[method]["chamfer_l1_mm"]) and 0 <= metrics[method]["fscore"] <= 1
-    assert metrics["baseline"]["fraction"] in map(float, metrics["baseline"]["sweep_chamfer_mm"])
-    assert "GeRaF (neural)" in result.output and "Chamfer-L1" in result.output
+    assert set(metrics["methods"]) == set(METHODS)
+    for method in METHODS:
+        scores = metrics["methods"][method]
+        assert math.isfinite(scores["full"]["chamfer_l1_mm"]) and 0 <= scores["full"]["fscore"] <= 1
+        assert set(scores["objects"]) == {"metal_ball", "wood_block", "glass_jar", "concrete_ring", "notched_block"}
+        assert 0 < scores["observed_fraction"] < 1
+    baseline = metrics["methods"]["mf_threshold"]
+    assert baseline["fraction"] in map(float, baseline["sweep_chamfer_mm"])
+    assert metrics["fit_steps"] == 6 and metrics["seconds_per_step"] > 0
+    assert "GeRaF (neural)" in result.output and "recall metal_ball" in result.output
     log_lines = (out / "run" / "log.csv").read_text().count("\n")
 
     again = runner.invoke(main, ["demo", "--quick", "--out", str(out)])  # the finished fit is reused
     assert again.exit_code == 0, again.output
     assert (out / "run" / "log.csv").read_text().count("\n") == log_lines
+
+
+def test_quick_demo_on_a_scene_file(tmp_path):
+    scene = tmp_path / "two.toml"
+    scene.write_text('name = "two"\n[bounds]\nlower_m = [-0.12, -0.12, -0.12]\nupper_m = [0.12, 0.12, 0.12]\n'
+                     '[[objects]]\nname = "can"\nmaterial = "metal"\nshape = { type = "capped_cylinder", radius_m = 0.03, '
+                     'height_m = 0.06, axis = [0.0, 1.0, 0.0], center_m = [0.04, 0.0, 0.02] }\n'
+                     '[[objects]]\nname = "slab"\nmaterial = "concrete"\n'
+                     'shape = { type = "box", half_extents_m = [0.03, 0.02, 0.01], center_m = [-0.05, 0.03, -0.04] }\n')
+    result = CliRunner().invoke(main, ["demo", "--quick", "--scene", str(scene), "--out", str(tmp_path / "d")])
+    assert result.exit_code == 0, result.output
+    objects = json.loads((tmp_path / "d" / "metrics.json").read_text())["methods"]["neural"]["objects"]
+    assert set(objects) == {"can", "slab"}
+
+
+def test_demo_refuses_bad_scene_and_radar_names_in_one_line(tmp_path):
+    runner = CliRunner()
+    for option, name in (("--scene", "no-such-scene"), ("--radar", "no-such-radar")):
+        result = runner.invoke(main, ["demo", "--quick", option, name, "--out", str(tmp_path / "d")])
+        assert result.exit_code == 2 and result.output.startswith("error: no-such-") and result.output.count("\n") == 1
+        assert not (tmp_path / "d").exists()

@@ -53,3 +53,49 @@ def test_evaluate_mesh_against_a_scene_fills_in_the_iou_of_a_closed_mesh():
     assert metrics.chamfer_l1_mm < 0.5 and metrics.iou > 0.97
     cap = trimesh.Trimesh(closed.vertices, closed.faces[closed.triangles_center[:, 2] > 0])  # open
     assert evaluate_mesh(cap, scene, samples=10_000).iou is None
+
+
+def _two_ball_scene(tmp_path):
+    from rfsdf.scene import load_scene
+
+    path = tmp_path / "two.toml"
+    path.write_text('name = "two"\n[bounds]\nlower_m = [-0.1, -0.1, -0.1]\nupper_m = [0.1, 0.1, 0.1]\n'
+                    '[[objects]]\nname = "left"\nmaterial = "metal"\nshape = { type = "sphere", radius_m = 0.02, center_m = [-0.05, 0, 0] }\n'
+                    '[[objects]]\nname = "right"\nmaterial = "metal"\nshape = { type = "sphere", radius_m = 0.02, center_m = [0.05, 0, 0] }\n')
+    return load_scene(path)
+
+
+def test_per_object_metrics_name_the_missed_object(tmp_path):
+    from rfsdf.metrics import evaluate_scene
+
+    scene = _two_ball_scene(tmp_path)
+    only_left = extract_mesh(Sphere(0.02, (-0.05, 0.0, 0.0)), (-0.1,) * 3, (0.1,) * 3, 96)
+    result = evaluate_scene(only_left, scene, samples=20_000)
+    left, right = result.objects["left"], result.objects["right"]
+    assert left.recall > 0.99 and left.precision > 0.99 and left.found and left.chamfer_l1_mm < 0.5
+    assert right.recall == 0.0 and not right.found and right.chamfer_l1_mm is None
+    assert result.full.recall == pytest.approx(0.5, abs=0.02)  # half the true surface is missing
+    assert result.as_dict()["objects"]["right"]["found"] is False
+
+
+def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):
+    """One single-element view on +z at 1 m: the cone is 0, so the observed surface is the cap
+    whose normals lie within the tolerance of the direction to the radar; its area fraction
+    is (1 - cos a) / 2 for a half-angle a (closed form, parallax neglected)."""
+    import math
+
+    import torch
+
+    from rfsdf.metrics import evaluate_scene
+    from rfsdf.radar import Acquisition
+    from rfsdf.radar.coverage import observed_mask
+
+    scene = _two_ball_scene(tmp_path)
+    here = torch.tensor([[[0.0, 0.0, 1.0]]], dtype=torch.float64)
+    acq = Acquisition(here, here.clone(), torch.tensor([79e9]), torch.tensor([[0.0, 0.0, -1.0]], dtype=torch.float64))
+    tolerance = math.radians(20.0)
+    seen = lambda p, n: observed_mask(p, n, acq, scene.sdf, tolerance_rad=tolerance)  # noqa: E731
+    truth = trimesh.util.concatenate(scene.object_meshes())
+    result = evaluate_scene(truth, scene, observed=seen, samples=40_000)
+    assert result.observed_fraction == pytest.approx((1 - math.cos(tolerance)) / 2, rel=0.1)
+    assert result.observed.chamfer_l1_mm < 0.5 and result.observed.recall > 0.99

@@ -1,107 +1,198 @@
+"""The coherent reconstruction: surface sampling, rendering against the simulator, gradients,
+a tiny fit, checkpoints and registries."""
+
+import dataclasses
+import math
+
 import pytest
 import torch
 
 from rfsdf.errors import RfsdfError
 from rfsdf.geometry import Grid
-from rfsdf.radar import Acquisition, load_radar, point_spread
-from rfsdf.recon import PhysicsRenderer, Problem, ReconConfig, Trainer, delta_sigma, sigma_at
-from rfsdf.recon.trainer import load_field
-from rfsdf.recon.warm_start import image_signed_distance
+from rfsdf.materials import fresnel
+from rfsdf.radar import load_radar, simulate
+from rfsdf.radar.scattering import lit_mask
+from rfsdf.recon import (
+    CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss, load_field, project_to_surface,
+    surface_candidates,
+)
+from rfsdf.recon.checkpoint import CHECKPOINT_NAME
+from rfsdf.recon.warm_start import fit_to_image
+from rfsdf.scene import load_scene
 
-TRUE_RADIUS = 0.035
-
-
-def _tiny_problem() -> Problem:
-    """A sphere's 'MF power' (a thin Gaussian shell) seen by 4 views on the axes."""
-    grid = Grid((-0.06,) * 3, (0.06,) * 3, (16, 16, 16))
-    p = grid.points()
-    shell = torch.exp(-0.5 * ((p.norm(dim=1) - TRUE_RADIUS) / 0.006) ** 2).reshape(grid.shape)
-    centres = torch.tensor([[0.5, 0, 0], [-0.5, 0, 0], [0, 0.5, 0], [0, -0.5, 0]], dtype=torch.float64)
-    acq = Acquisition(centres[:, None], centres[:, None], torch.tensor([79e9]), -centres / 0.5)
-    return Problem(grid, shell.expand(4, -1, -1, -1).clone(), centres.float(), acq)
+RADIUS = 0.02  # the `sphere` preset: a 2 cm metal ball at the origin
 
 
-def _config(steps=20, init="sphere", **train) -> ReconConfig:
+@pytest.fixture(scope="module")
+def tiny_radar(tmp_path_factory):
+    """Six views around the origin, a 4 cm boundary array (6 Tx, 6 Rx), 8 frequencies."""
+    path = tmp_path_factory.mktemp("radar") / "tiny.toml"
+    path.write_text('name = "tiny"\n[waveform]\nkind = "ofdm"\ncarrier_hz = 79e9\nbandwidth_hz = 4e9\nsubcarriers = 8\n'
+                    '[array]\nkind = "boundary"\nsize_m = 0.04\nelements_per_edge = 3\n'
+                    '[views]\ndistance_m = 0.3\nazimuths_per_ring = [4, 1, 1]\nelevations_rad = [0.0, 1.4, -1.4]\n'
+                    '[noise]\nsnr_db = 40.0\n')
+    return load_radar(path)
+
+
+@pytest.fixture(scope="module")
+def sphere_data(tiny_radar):
+    scene = load_scene("sphere")
+    return scene, simulate(scene, tiny_radar, seed=0)
+
+
+class _Ball(torch.nn.Module):
+    """A field with one radius [m] and one reflectivity: f = |p| - r, Gamma = g."""
+
+    def __init__(self, radius, gamma=1.0, dtype=torch.float32):
+        super().__init__()
+        self.radius = torch.nn.Parameter(torch.tensor(radius, dtype=dtype))
+        self.gamma = torch.nn.Parameter(torch.tensor(gamma, dtype=dtype))
+
+    def sdf(self, points):
+        return points.norm(dim=1) - self.radius
+
+    def reflectivity(self, points):
+        return self.gamma.expand(len(points))
+
+
+def _grid(voxels=16):
+    return Grid((-0.06,) * 3, (0.06,) * 3, (voxels,) * 3)
+
+
+def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
+    radius, grid = 0.03, _grid(20)
+    sdf = lambda p: p.norm(dim=1) - radius  # noqa: E731
+    points = grid.points()
+    for seed in range(3):
+        cand = surface_candidates(sdf, points, sdf(points), float(grid.voxel_m[0]), 0.0013,
+                                  torch.Generator().manual_seed(seed))
+        on = project_to_surface(sdf, cand)
+        assert (on.norm(dim=1) - radius).abs().max() < 1e-6  # << lambda / 10 = 0.38 mm
+        assert float(cand.area_m2.sum()) == pytest.approx(4 * math.pi * radius**2, rel=0.02)
+        assert cand.spacing_m <= 0.0013
+        torch.testing.assert_close(cand.normals, torch.nn.functional.normalize(cand.anchors, dim=1))
+
+
+def test_renderer_on_the_true_samples_reproduces_the_simulator(sphere_data, tiny_radar):
+    scene, _ = sphere_data
+    radar = dataclasses.replace(tiny_radar, snr_db=None)
+    clean = simulate(scene, radar, seed=3)
+    renderer = CoherentRenderer(clean, _grid(8))
+    acq = clean.acquisition
+    samples = scene.sample_surface(acq.wavelength_m / 3, seed=3, max_samples=150_000)  # simulate's own samples
+    eps = torch.tensor([complex(o.material.permittivity(acq.center_frequency_hz)) for o in scene.objects])
+    for view in range(acq.shape[0]):
+        lit = lit_mask(samples.points, samples.normals, renderer.tx_centres[view], renderer.rx_centres[view],
+                       occluder=scene.sdf)
+        p, n, a = samples.points[lit], samples.normals[lit], samples.area_m2[lit]
+        fresnel_of = lambda cos: fresnel(torch.arccos(cos), eps[samples.object_index[lit]], "mean")  # noqa: E731
+        y = renderer.predict_data(view, p.double(), n.double(), a.double(), fresnel_of)
+        reference = clean.data[view]
+        assert float((y[0] - reference).norm() / reference.norm()) < 1e-5
+
+
+def test_renderer_and_loss_pass_gradcheck_in_float64(sphere_data):
+    _, data = sphere_data
+    renderer = CoherentRenderer(data, _grid(6), spacing_m=0.006, dtype=torch.float64)
+    start = _Ball(RADIUS + 0.002, dtype=torch.float64)
+    with torch.no_grad():
+        renderer.refresh(start.sdf, start.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    views, voxels = torch.tensor([0, 4]), torch.arange(0, renderer.voxels.shape[0], 3)
+    observed = renderer.observed.abs()[views][:, voxels]
+
+    def loss(radius, gamma):
+        ball = _Ball(0.0, dtype=torch.float64)
+        ball.sdf = lambda p: p.norm(dim=1) - radius
+        ball.reflectivity = lambda p: gamma.expand(len(p))
+        return amplitude_loss(renderer(ball, views, voxels), observed)
+
+    args = (torch.tensor(RADIUS + 0.002, dtype=torch.float64, requires_grad=True),
+            torch.tensor(0.7, dtype=torch.float64, requires_grad=True))
+    assert torch.autograd.gradcheck(loss, args, eps=1e-7, atol=1e-6, rtol=1e-3)
+
+
+def test_gradient_in_the_radius_matches_finite_differences(sphere_data):
+    _, data = sphere_data
+    renderer = CoherentRenderer(data, _grid())
+    ball = _Ball(RADIUS + 0.003)
+    with torch.no_grad():
+        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(1))
+    views, voxels = torch.arange(6), torch.arange(renderer.voxels.shape[0])
+    observed = renderer.observed.abs()
+
+    def loss():
+        return amplitude_loss(renderer(ball, views, voxels), observed)
+
+    loss().backward()
+    step = 2e-6
+    with torch.no_grad():
+        ball.radius += step
+        up = float(loss())
+        ball.radius -= 2 * step
+        down = float(loss())
+    assert ball.radius.grad.item() == pytest.approx((up - down) / (2 * step), rel=0.05)
+    assert ball.radius.grad.item() > 0  # 3 mm too large: the loss falls as the ball shrinks
+
+
+def _config(**train) -> ReconConfig:
     return ReconConfig.model_validate({
-        "field": {"width": 32, "depth": 4, "levels": 2, "init_radius_m": 0.02},
-        "init": {"method": init, "threshold": 0.5, "steps": 150, "lr": 3e-3, "batch": 1024},
-        "render": {"renderer": "local", "facing_exponent": 0.0},
-        "sampling": {"data_batch": 512, "eikonal_batch": 256, "views_per_step": 2},
-        "train": {"steps": steps, "checkpoint_every": 5, "lr": 3e-3, **train},
+        "field": {"width": 32, "depth": 4, "levels": 2, "init_radius_m": RADIUS + 0.003},
+        "init": {"method": "sphere"},
+        "render": {"element_step": 1, "refresh_every": 4},
+        "sampling": {"views_per_step": 6, "data_batch": 1024, "eikonal_batch": 512},
+        "loss": {"eikonal_weight": 0.1},
+        "train": {"steps": 12, "checkpoint_every": 5, "lr": 1e-3, "lr_end": 1e-4, **train},
     })
 
 
-def test_sigma_anneals_exponentially_to_the_end_value():
-    assert sigma_at(0, 100, 0.03, 0.01) == pytest.approx(0.03)
-    assert sigma_at(50, 100, 0.03, 0.01) == pytest.approx((0.03 * 0.01) ** 0.5)
-    assert sigma_at(100, 100, 0.03, 0.01) == pytest.approx(0.01)
-    assert sigma_at(0, 100, 0.03, 0.01, "constant") == 0.01
-    assert delta_sigma(torch.tensor([0.0, 0.01]), 0.01).tolist() == pytest.approx([1.0, 0.6065306])
-
-
-def test_fit_moves_the_zero_level_set_toward_the_truth(tmp_path):
-    problem = _tiny_problem()
-    directions = torch.nn.functional.normalize(torch.randn(500, 3, generator=torch.Generator().manual_seed(1)), dim=1)
-    on_truth = directions * TRUE_RADIUS
-    trainer = Trainer(problem, _config(steps=150), tmp_path / "run")
+def _mean_radius(field, renderer) -> float:
     with torch.no_grad():
-        before = trainer.field.sdf(on_truth).abs().mean().item()
-    field = trainer.fit()
-    with torch.no_grad():
-        after = field.sdf(on_truth).abs().mean().item()
-    assert before == pytest.approx(TRUE_RADIUS - 0.02, abs=0.003)
-    assert after < 0.4 * before
-    assert (tmp_path / "run" / "log.csv").read_text().count("\n") == 151
+        renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(5))
+        return float(project_to_surface(field.sdf, renderer.candidates).norm(dim=1).mean())
 
 
-def test_image_signed_distance_of_a_ball_matches_the_closed_form():
-    grid = Grid((-0.06,) * 3, (0.06,) * 3, (40, 40, 40))
-    p = grid.points()
-    power = (p.norm(dim=1) < 0.03).float().reshape(grid.shape)  # 1 inside a 3 cm ball, 0 outside
-    distance = torch.from_numpy(image_signed_distance(power.numpy(), grid, 0.5)).flatten()
-    exact = p.norm(dim=1) - 0.03
-    assert (distance - exact).abs().max() < float(grid.voxel_m[0])  # voxelised boundary: within a voxel
-    assert (distance - exact).abs().mean() < 0.4 * float(grid.voxel_m[0])
-    with pytest.raises(ValueError, match="selects no voxel"):
-        image_signed_distance(torch.zeros(grid.shape).numpy(), grid, 0.5)
+def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
+    _, data = sphere_data
+    trainer = Trainer(Problem(data, _grid()), _config(steps=40), tmp_path / "run")
+    dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
+    fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
+                 eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
+    assert _mean_radius(trainer.field, trainer.renderer) == pytest.approx(RADIUS + 0.003, abs=3e-4)
+    fit = trainer.fit()
+    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=3e-4)
+    assert len(fit.log) == 40 and fit.log[-1].data < fit.log[0].data
 
 
-def test_image_warm_start_puts_the_surface_where_the_image_is_bright(tmp_path):
-    directions = torch.nn.functional.normalize(torch.randn(500, 3, generator=torch.Generator().manual_seed(1)), dim=1)
-    trainer = Trainer(_tiny_problem(), _config(steps=1, init="image"), tmp_path / "run")
-    trainer.warm_start()
-    with torch.no_grad():
-        on_truth = trainer.field.sdf(directions * TRUE_RADIUS).abs().mean().item()
-    # The shell image above half its peak amplitude is a shell of half-width ~7 mm around the
-    # truth: the warm start's zero set hugs its outer side, much nearer than the 15 mm start.
-    assert on_truth < 0.010
+def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path):
+    _, data = sphere_data
+    problem = Problem(data, _grid(10), "data.h5")
+    straight = Trainer(problem, _config(), tmp_path / "a").fit().field
 
-
-def test_resume_after_a_kill_reproduces_the_uninterrupted_run(tmp_path):
-    problem = _tiny_problem()
-    straight = Trainer(problem, _config(), tmp_path / "a").fit()
-
-    def kill_at_12(step):
-        if step == 12:
+    def kill_at_7(step):
+        if step == 7:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        Trainer(problem, _config(), tmp_path / "b").fit(on_step=kill_at_12)  # last checkpoint: step 10
-    resumed = Trainer(problem, _config(), tmp_path / "b").fit(resume=True)
+        Trainer(problem, _config(), tmp_path / "b").fit(on_step=kill_at_7)  # last checkpoint: step 5
+    resumed = Trainer(problem, _config(), tmp_path / "b").fit(resume=True).field
     for a, b in zip(straight.state_dict().values(), resumed.state_dict().values()):
         assert torch.equal(a, b)
     assert torch.equal(load_field(tmp_path / "b").state_dict()["geometry.layers.0.weight"],
                        straight.state_dict()["geometry.layers.0.weight"])
     with pytest.raises(RfsdfError, match="already holds a run"):
         Trainer(problem, _config(), tmp_path / "b").fit()
+    other = Problem(dataclasses.replace(data, data=data.data * 1.5), _grid(10), "other.h5")
+    with pytest.raises(RfsdfError, match="fitted on data.h5 .* not on other.h5"):
+        Trainer(other, _config(), tmp_path / "b").fit(resume=True)
 
 
-def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(tmp_path, monkeypatch):
-    trainer = Trainer(_tiny_problem(), _config(), tmp_path / "run")
+def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(sphere_data, tmp_path, monkeypatch):
+    _, data = sphere_data
+    trainer = Trainer(Problem(data, _grid(10)), _config(), tmp_path / "run")
     real = trainer.loss_terms
 
-    def poisoned(sigma):
-        terms = real(sigma)
+    def poisoned():
+        terms = real()
         if trainer.step >= 7:
             terms["loss"] = terms["loss"] * float("nan")
         return terms
@@ -109,18 +200,11 @@ def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(tmp_p
     monkeypatch.setattr(trainer, "loss_terms", poisoned)
     with pytest.raises(RfsdfError, match=r"step 7: loss is not finite.*last good checkpoint kept"):
         trainer.fit()
-    state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=False)
-    assert state["step"] == 5
+    assert torch.load(tmp_path / "run" / CHECKPOINT_NAME, weights_only=True)["step"] == 5
 
 
-def test_physics_renderer_reproduces_the_exact_psf_of_a_point():
-    acq = load_radar("near-77g").acquisition().view(slice(0, 2))
-    grid = Grid((-0.03,) * 3, (0.03,) * 3, (12, 12, 12))
-    renderer = PhysicsRenderer.from_acquisition(acq, grid, psf_radius_m=0.03)
-    intensity = torch.zeros(2, *grid.shape)
-    intensity[:, 6, 6, 6] = 1.0  # a unit scatterer on the central voxel
-    predicted = renderer(intensity, torch.tensor([0, 1]))
-    centre = grid.points()[6 * 144 + 6 * 12 + 6]
-    exact = point_spread(acq, centre, grid).per_view.abs() ** 2
-    assert predicted[:, 6, 6, 6] == pytest.approx(torch.ones(2), rel=1e-4)
-    assert torch.allclose(predicted, exact, atol=1e-4)
+@pytest.mark.parametrize("table,key,name", [("render", "renderer", "physics"), ("loss", "data", "l7"),
+                                            ("train", "schedule", "cosine")])
+def test_unknown_names_are_refused_with_the_known_ones(table, key, name):
+    with pytest.raises(Exception, match=f"unknown .*'{name}'; known: "):
+        ReconConfig.model_validate({table: {key: name}})

@@ -1,6 +1,8 @@
-"""The baseline a user tries first: marching cubes on the MF power image at a fraction of its
-peak. It is reported at the best fraction of a sweep, chosen against the truth, so the
-comparison with the neural reconstruction is generous to it."""
+"""Baselines: what a radar engineer would threshold. Marching cubes on an image's power (the
+raw MF image, or its CLEAN image) at a fraction of its peak, reported at the best fraction
+of a sweep chosen against the truth, so the comparison with the neural reconstruction is
+generous to them; and the local (CFAR-like) detection that the fit's warm start uses, at
+its fixed settings."""
 
 from __future__ import annotations
 
@@ -12,8 +14,9 @@ import trimesh
 from .geometry.grid import Grid
 from .mesh import mesh_from_volume
 from .metrics import MeshMetrics, compare_meshes
+from .radar.detection import amplitude_of, detection_level
 
-__all__ = ["DEFAULT_FRACTIONS", "threshold_mesh", "BaselineResult", "best_threshold_mesh"]
+__all__ = ["DEFAULT_FRACTIONS", "threshold_mesh", "detection_mesh", "BaselineResult", "best_threshold_mesh"]
 
 DEFAULT_FRACTIONS = (0.003, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5)
 
@@ -22,6 +25,15 @@ def threshold_mesh(power: np.ndarray, grid: Grid, fraction: float) -> trimesh.Tr
     """Mesh of the set where ``power`` (nx, ny, nz) >= ``fraction`` of its maximum."""
     power = np.asarray(power, float)
     return mesh_from_volume(-power / power.max(), grid, level=-fraction)
+
+
+def detection_mesh(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float,
+                   window_m: float) -> trimesh.Trimesh:
+    """Mesh of the boundary of :func:`~rfsdf.radar.detection.detection_mask` (the amplitude
+    crossing its local level), by marching cubes on amplitude - level."""
+    window = max(1, round(window_m / float(np.max(grid.voxel_m))))
+    level = detection_level(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window)
+    return mesh_from_volume(level - amplitude_of(power), grid, level=0.0)
 
 
 @dataclass(frozen=True)

@@ -96,26 +96,50 @@ def simulate_cmd(scene_name: str, radar_name: str, out: Path, seed: int):
     click.echo(f"wrote {out}")
 
 
+def _image_box(data: Path, measurements, bounds: str | None, scene_name: str | None):
+    """The box to image, from --bounds, else the bounds stored in the file, else a scene's."""
+    from .radar import parse_bounds
+    from .scene import load_scene
+
+    if bounds is not None:
+        return parse_bounds(bounds, "--bounds")
+    if scene_name is None and "bounds_m" in measurements.metadata:
+        return parse_bounds(measurements.metadata["bounds_m"], f"{data}: meta_bounds_m")
+    name = scene_name or measurements.metadata.get("scene")
+    if name is None:
+        raise ValueError(f"{data}: no bounds or scene recorded in the file; pass --bounds XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX")
+    sc = load_scene(name)
+    return tuple(sc.lower_m), tuple(sc.upper_m)
+
+
+def _voxel(voxel_m: float | None, lower, upper) -> float:
+    """--voxel, or the box's longest edge / 64 when unset."""
+    import numpy as np
+
+    if voxel_m is None:
+        return float(np.max(np.subtract(upper, lower))) / 64
+    if not (voxel_m > 0 and voxel_m < float("inf")):
+        raise ValueError(f"--voxel must be a positive, finite size [m], got {voxel_m}")
+    return voxel_m
+
+
+_BOUNDS_HELP = "Box to image [m], XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the bounds stored in DATA, else --scene's)."
+
+
 @main.command("image")
 @click.argument("data", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Image file (.h5); MIPs go beside it.")
-@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] (default: scene extent / 64).")
-@click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image (default: the one simulated).")
+@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] (default: box extent / 64).")
+@click.option("--bounds", default=None, help=_BOUNDS_HELP)
+@click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image.")
 @_one_line_errors
-def image_cmd(data: Path, out: Path, voxel_m: float | None, scene_name: str | None):
+def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None):
     """Matched-filter image of a measurements file, plus maximum-intensity projections (PNG)."""
     from .radar import read_measurements
-    from .scene import load_scene
 
     measurements = read_measurements(data)
-    name = scene_name or measurements.metadata.get("scene")
-    if name is None:
-        raise ValueError(f"{data}: no scene recorded in the file; pass --scene for the image bounds")
-    sc = load_scene(name)
-    voxel_m = voxel_m or float(sc.extent_m.max()) / 64
-    if not voxel_m > 0:
-        raise ValueError(f"--voxel must be positive, got {voxel_m}")
-    _image(measurements, sc.lower_m, sc.upper_m, voxel_m, out, out.with_suffix(".mip.png"))
+    lower, upper = _image_box(data, measurements, bounds, scene_name)
+    _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"))
 
 
 @main.command("import-fmcw")
@@ -133,22 +157,40 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 
 @main.command("reconstruct")
 @click.argument("data", type=click.Path(path_type=Path))
-@click.option("--image", "image_path", type=click.Path(path_type=Path), required=True,
-              help="Matched-filter image of DATA (from `rfsdf image`); its grid is the fit's grid.")
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Run folder.")
+@click.option("--image", "image_path", type=click.Path(path_type=Path), default=None,
+              help="A matched-filter image of DATA (from `rfsdf image`): the fit uses its grid.")
+@click.option("--bounds", default=None, help=_BOUNDS_HELP)
+@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] of the fit's images (default: extent / 50).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None, help="Reconstruction TOML.")
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint.")
 @_one_line_errors
-def reconstruct_cmd(data: Path, image_path: Path, out: Path, config_path: Path | None, resume: bool):
-    """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply."""
+def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
+                    config_path: Path | None, resume: bool):
+    """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply.
+
+    No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA."""
+    import numpy as np
+
+    from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
     from .recon import Problem, Trainer, load_recon_config
 
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
-    problem = Problem.from_image(read_image(image_path), read_measurements(data).acquisition)
-    field = Trainer(problem, config, out, progress=True).fit(resume=resume)
-    mesh = extract_mesh(field.sdf, problem.grid.lower_m, problem.grid.upper_m, config.train.mesh_resolution)
+    measurements = read_measurements(data)
+    if image_path is not None:
+        image = read_image(image_path)
+        if image.per_view.shape[0] != measurements.acquisition.shape[0]:
+            raise ValueError(f"{image_path}: per_view: the image has {image.per_view.shape[0]} views, "
+                             f"{data} has {measurements.acquisition.shape[0]}")
+        grid = image.grid
+    else:
+        lower, upper = _image_box(data, measurements, bounds, None)
+        voxel = float(np.max(np.subtract(upper, lower))) / 50 if voxel_m is None else _voxel(voxel_m, lower, upper)
+        grid = Grid.from_voxel(lower, upper, voxel)
+    fit = Trainer(Problem(measurements, grid, str(data)), config, out, progress=True).fit(resume=resume)
+    mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
 
 
@@ -201,21 +243,21 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 
 @main.command()
 @click.option("--out", type=click.Path(path_type=Path), default=Path("rfsdf-demo"), show_default=True)
-@click.option("--renderer", type=click.Choice(["physics", "local"]), default="physics", show_default=True)
+@click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
+@click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
 @_one_line_errors
-def demo(out: Path, renderer: str, quick: bool):
-    """Simulate, image, reconstruct, mesh and evaluate the default scene; all artefacts go to --out.
+def demo(out: Path, scene_name: str, radar_name: str, quick: bool):
+    """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
-    Ends with a table of metrics for the GeRaF reconstruction and the MF-threshold baseline.
+    Ends with a table of metrics for the GeRaF reconstruction and the baselines.
     A second run with the same --out continues (or reuses) the fit.
     """
     import dataclasses
 
     from .demo import QUICK, DemoSettings, metrics_table, run_demo
 
-    settings = QUICK if quick else DemoSettings()
-    recon = {**settings.recon, "render": {**settings.recon.get("render", {}), "renderer": renderer}}
-    result = run_demo(out, dataclasses.replace(settings, recon=recon), log=click.echo)
+    settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
+    result = run_demo(out, settings, log=click.echo)
     click.echo(metrics_table(result))
-    click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")
+    click.echo(f"total {result.timings_s['total_s']:.0f} s; every artefact and metrics.json are in {out}")

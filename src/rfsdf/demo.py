@@ -1,14 +1,17 @@
 """The whole pipeline on one scene: simulate, image, reconstruct (GeRaF), mesh, evaluate
-against the truth and against the MF-threshold baseline, and picture every stage.
+against the truth and against the baselines, and picture every stage.
 
 ``run_demo`` writes into one folder:
 
     measurements.h5, image.h5          the data and its matched-filter image
     scene-slices.png, image-mip.png    the true SDF; MF power projections
+    clean-mip.png                      CLEAN power projections (the warm start's image)
     run/                               the fit: checkpoint.pt, log.csv, config.toml
-    neural.ply, baseline.ply           the two reconstructions
-    recon-slices.png, training.png     neural SDF against the truth; loss and sigma curves
-    metrics.json                       metrics of both, the baseline sweep, stage timings
+    neural.ply, neural-warm-start.ply  the GeRaF reconstruction, and its field before the fit
+    mf-threshold.ply, clean-threshold.ply, clean-detection.ply    the baselines
+    recon-slices.png, training.png     neural SDF against the truth; loss curves
+    metrics.json                       metrics of every method (full, observed surface,
+                                       per object), the baselines' sweeps, stage timings
 
 A demo run folder is resumable: run again with the same settings and the fit continues
 from its last checkpoint (a finished fit is reused).
@@ -19,22 +22,26 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
 import torch
 
 from .atomic import atomic_path
-from .baseline import best_threshold_mesh
+from .baseline import best_threshold_mesh, detection_mesh
 from .geometry import Grid
 from .mesh import export_mesh, extract_mesh
-from .metrics import evaluate_mesh, with_scene_iou
+from .metrics import SceneMetrics, evaluate_scene
 from .radar import check_radar_for_scene, load_radar, matched_filter, simulate, write_image, write_measurements
+from .radar.clean import clean_image
+from .radar.coverage import observed_mask
 from .recon import Problem, ReconConfig, Trainer
 from .scene import load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "run_demo", "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "MethodResult", "DemoResult", "run_demo", "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -55,15 +62,52 @@ QUICK = DemoSettings(
     voxel_m=0.015, max_surface_samples=20_000, mesh_resolution=40, metric_samples=5_000,
     recon={"field": {"width": 48, "depth": 4},
            "init": {"steps": 40, "batch": 2048},
-           "sampling": {"data_batch": 2048, "eikonal_batch": 512, "views_per_step": 2},
+           "render": {"element_step": 4, "spacing_m": 0.004, "refresh_every": 3},
+           "sampling": {"data_batch": 1024, "eikonal_batch": 512, "views_per_step": 2},
            "train": {"steps": 6, "checkpoint_every": 3}},
 )
 
 
+@dataclass(frozen=True)
+class MethodResult:
+    """One reconstruction method's mesh scores; ``details`` says how it was chosen (e.g. the
+    threshold sweep of a baseline)."""
+
+    label: str
+    metrics: SceneMetrics
+    details: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"label": self.label, **self.metrics.as_dict(), **self.details}
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Everything the demo measured (written as metrics.json)."""
+
+    scene: str
+    radar: str
+    grid: tuple[int, int, int]
+    voxel_mm: float
+    threads: int
+    fit_steps: int
+    seconds_per_step: float
+    methods: dict[str, MethodResult]
+    timings_s: dict[str, float]
+
+    def as_dict(self) -> dict:
+        return {"scene": self.scene, "radar": self.radar, "grid": list(self.grid), "voxel_mm": self.voxel_mm,
+                "threads": self.threads, "fit_steps": self.fit_steps, "seconds_per_step": self.seconds_per_step,
+                "methods": {name: m.as_dict() for name, m in self.methods.items()}, "timings_s": self.timings_s}
+
+
 def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str], None] = print,
-             progress: bool = True) -> dict:
+             progress: bool = True) -> DemoResult:
     """Run the pipeline into folder ``out``; returns (and writes as metrics.json) the results."""
     out = Path(out)
+    scene, radar = load_scene(settings.scene), load_radar(settings.radar)
+    check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
+    config = ReconConfig.model_validate(settings.recon)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -74,8 +118,6 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
         timings[stage] = round(now - clock, 2)
         clock = now
 
-    scene, radar = load_scene(settings.scene), load_radar(settings.radar)
-    check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
     log(scene.summary())
     log(radar.summary())
     plot_sdf_slices(scene.sdf, scene.lower_m, scene.upper_m, out / "scene-slices.png",
@@ -89,54 +131,81 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     log(f"matched filter on {grid.shape} voxels of {settings.voxel_m * 1e3:.1f} mm")
     image = matched_filter(measurements, grid, progress=progress)
     write_image(out / "image.h5", image)
-    power = image.power().numpy()
-    plot_mip(power, grid.lower_m, grid.upper_m, out / "image-mip.png", title="matched-filter power (mean over views)")
+    mf_power = image.power().numpy()
+    plot_mip(mf_power, grid.lower_m, grid.upper_m, out / "image-mip.png", title="matched-filter power (mean over views)")
     lap("image_s")
 
-    config = ReconConfig.model_validate(settings.recon)
-    log(f"GeRaF fit: {config.render.renderer} renderer, {config.init.steps} warm-start + {config.train.steps} steps")
-    trainer = Trainer(Problem.from_image(image, measurements.acquisition), config, out / "run", progress=progress)
-    neural_field = trainer.fit(resume=True)
+    rc = config.render
+    clean_power = clean_image(measurements, grid, progress=progress).power.numpy()
+    plot_mip(clean_power, grid.lower_m, grid.upper_m, out / "clean-mip.png", title="CLEAN power (mean over views)")
+    lap("clean_s")
+
+    log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
+        f"({config.init.steps} steps) + {config.train.steps} steps")
+    problem = Problem(measurements, grid, str(out / "measurements.h5"),
+                      clean_power=clean_power if config.init.method == "clean" else None)
+    fit = Trainer(problem, config, out / "run", progress=progress).fit(resume=True)
     lap("fit_s")
 
-    neural = extract_mesh(neural_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
+    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
+                    observed=partial(observed_mask, acquisition=measurements.acquisition, occluder=scene.sdf))
+    neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
     export_mesh(neural, out / "neural.ply")
-    neural_metrics = evaluate_mesh(neural, scene, samples=settings.metric_samples, seed=settings.seed)
+    warm = extract_mesh(fit.warm_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
+    export_mesh(warm, out / "neural-warm-start.ply")
+    methods = {"neural": MethodResult("GeRaF (neural)", score(neural)),
+               "neural_warm_start": MethodResult("its warm start", score(warm))}
     lap("mesh_and_evaluate_s")
-    baseline = best_threshold_mesh(power, grid, scene.ground_truth_mesh(), samples=settings.metric_samples,
-                                   seed=settings.seed)
-    export_mesh(baseline.mesh, out / "baseline.ply")
-    baseline_metrics = with_scene_iou(baseline.metrics, baseline.mesh, scene, seed=settings.seed)
-    lap("baseline_s")
 
-    plot_sdf_slices(neural_field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,
+    reference = scene.ground_truth_mesh()
+    for name, power, label in (("mf_threshold", mf_power, "MF threshold"),
+                               ("clean_threshold", clean_power, "CLEAN threshold")):
+        best = best_threshold_mesh(power, grid, reference, samples=settings.metric_samples, seed=settings.seed)
+        export_mesh(best.mesh, out / f"{name.replace('_', '-')}.ply")
+        methods[name] = MethodResult(f"{label} ({best.fraction:g})", score(best.mesh),
+                                     {"fraction": best.fraction,
+                                      "sweep_chamfer_mm": {str(k): v for k, v in best.sweep.items()}})
+    ic = config.init
+    detected = detection_mesh(clean_power, grid, threshold=ic.threshold, local_threshold=ic.local_threshold,
+                              window_m=ic.window_m)
+    export_mesh(detected, out / "clean-detection.ply")
+    methods["clean_detection"] = MethodResult("CLEAN detection", score(detected),
+                                              {"threshold": ic.threshold, "local_threshold": ic.local_threshold})
+    lap("baselines_s")
+
+    plot_sdf_slices(fit.field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,
                     title="neural SDF (black) against the true surfaces (dashed)")
-    plot_training_curves(trainer.log, out / "training.png", title=f"GeRaF fit ({config.render.renderer} renderer)")
+    plot_training_curves(fit.log, out / "training.png", title=f"GeRaF fit ({rc.renderer} renderer)")
     lap("figures_s")
 
-    result = {
-        "scene": scene.name, "radar": radar.name, "grid": list(grid.shape), "voxel_mm": settings.voxel_m * 1e3,
-        "renderer": config.render.renderer, "threads": torch.get_num_threads(),
-        "neural": neural_metrics.as_dict(),
-        "baseline": {**baseline_metrics.as_dict(), "fraction": baseline.fraction,
-                     "sweep_chamfer_mm": {str(k): v for k, v in baseline.sweep.items()}},
-        "timings_s": {**timings, "total_s": round(sum(timings.values()), 2)},
-    }
+    result = DemoResult(scene.name, radar.name, grid.shape, settings.voxel_m * 1e3, torch.get_num_threads(),
+                        len(fit.log), round(fit.seconds_per_step, 3), methods,
+                        {**timings, "total_s": round(sum(timings.values()), 2)})
     with atomic_path(out / "metrics.json") as tmp:
-        tmp.write_text(json.dumps(result, indent=2))
+        tmp.write_text(json.dumps(result.as_dict(), indent=2))
     return result
 
 
-def metrics_table(result: dict) -> str:
-    """The neural and baseline metrics side by side, as aligned text."""
-    rows = [("Chamfer-L1 [mm]", "chamfer_l1_mm", ".2f"), ("F-score @ 5 mm", "fscore", ".3f"),
-            ("precision", "precision", ".3f"), ("recall", "recall", ".3f"),
-            ("normal consistency", "normal_consistency", ".3f"), ("Hausdorff-95 [mm]", "hausdorff95_mm", ".1f"),
-            ("volumetric IoU", "iou", ".3f")]
-    baseline_name = f"MF threshold ({result['baseline']['fraction']:g} of peak)"
-    lines = [f"{'':<20}{'GeRaF (neural)':>18}{baseline_name:>30}"]
-    for label, key, fmt in rows:
-        cells = [result[name][key] for name in ("neural", "baseline")]
-        lines.append(f"{label:<20}" + "".join(f"{'-' if c is None else format(c, fmt):>{w}}"
-                                              for c, w in zip(cells, (18, 30))))
+def _cell(value, fmt: str) -> str:
+    return "-" if value is None or (isinstance(value, float) and not np.isfinite(value)) else format(value, fmt)
+
+
+def metrics_table(result: DemoResult) -> str:
+    """Every method's metrics side by side (full surface, observed surface, per-object recall)."""
+    rows = [("Chamfer-L1 [mm]", lambda m: m.full.chamfer_l1_mm, ".2f"), ("F-score @ 5 mm", lambda m: m.full.fscore, ".3f"),
+            ("precision", lambda m: m.full.precision, ".3f"), ("recall", lambda m: m.full.recall, ".3f"),
+            ("normal consistency", lambda m: m.full.normal_consistency, ".3f"),
+            ("Hausdorff-95 [mm]", lambda m: m.full.hausdorff95_mm, ".1f"), ("volumetric IoU", lambda m: m.full.iou, ".3f"),
+            ("observed Chamfer [mm]", lambda m: m.observed and m.observed.chamfer_l1_mm, ".2f"),
+            ("observed F-score", lambda m: m.observed and m.observed.fscore, ".3f")]
+    names = list(next(iter(result.methods.values())).metrics.objects)
+    rows += [(f"recall {name}", lambda m, n=name: m.objects[n].recall, ".2f") for name in names]
+    methods = list(result.methods.values())
+    width = max(18, *(len(m.label) + 2 for m in methods))
+    lines = [f"{'':<24}" + "".join(f"{m.label:>{width}}" for m in methods)]
+    for label, get, fmt in rows:
+        lines.append(f"{label:<24}" + "".join(f"{_cell(get(m.metrics), fmt):>{width}}" for m in methods))
+    fraction = methods[0].metrics.observed_fraction
+    if fraction is not None:
+        lines.append(f"(observed surface: {fraction:.0%} of the true surface is seen near specular by some view)")
     return "\n".join(lines)

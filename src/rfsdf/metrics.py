@@ -14,7 +14,8 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF
 
-__all__ = ["MeshMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh", "with_scene_iou"]
+__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
+           "with_scene_iou", "evaluate_scene"]
 
 
 @dataclass(frozen=True)
@@ -50,14 +51,7 @@ def compare_meshes(predicted: trimesh.Trimesh, reference: trimesh.Trimesh, *, th
     pb, nb = _samples(reference, samples, seed)  # same seed: identical meshes give exactly 0
     d_ab, i_ab = cKDTree(pb).query(pa)  # accuracy: predicted -> reference
     d_ba, i_ba = cKDTree(pa).query(pb)  # completeness: reference -> predicted
-    precision, recall = float((d_ab < threshold_m).mean()), float((d_ba < threshold_m).mean())
-    fscore = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
-    consistency = 0.5 * (np.abs((na * nb[i_ab]).sum(1)).mean() + np.abs((nb * na[i_ba]).sum(1)).mean())
-    return MeshMetrics(
-        chamfer_l1_mm=float(0.5 * (d_ab.mean() + d_ba.mean()) * 1e3), fscore=fscore, precision=precision,
-        recall=recall, threshold_mm=threshold_m * 1e3, normal_consistency=float(consistency),
-        hausdorff95_mm=float(max(np.percentile(d_ab, 95), np.percentile(d_ba, 95)) * 1e3),
-    )
+    return _scored(d_ab, d_ba, _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba]), threshold_m)
 
 
 def volumetric_iou(predicted: trimesh.Trimesh, inside_reference: Callable[[torch.Tensor], torch.Tensor],
@@ -90,3 +84,91 @@ def with_scene_iou(metrics: MeshMetrics, mesh: trimesh.Trimesh, scene, *, seed: 
         return metrics
     iou = volumetric_iou(mesh, lambda p: scene.sdf(p) < 0, scene.lower_m, scene.upper_m, seed=seed)
     return replace(metrics, iou=iou)
+
+
+@dataclass(frozen=True)
+class ObjectMetrics:
+    """One object of a scene: chamfer_l1_mm between the object's true surface and the
+    predicted surface nearest to it [mm]; precision of the predicted samples whose nearest
+    true object it is, recall of its own true samples (at the F-score threshold)."""
+
+    chamfer_l1_mm: float | None  # None when no predicted surface is nearest to this object
+    precision: float
+    recall: float
+
+    @property
+    def found(self) -> bool:
+        """Detected: at least half of its true surface was reconstructed."""
+        return self.recall >= 0.5
+
+
+@dataclass(frozen=True)
+class SceneMetrics:
+    """A mesh against a scene: ``full`` over the whole true surface; ``observed`` with
+    completeness and recall measured only over the true surface some view observes
+    (accuracy and precision over all predicted samples); ``objects`` per object, by name."""
+
+    full: MeshMetrics
+    observed: MeshMetrics | None
+    observed_fraction: float | None
+    objects: dict[str, ObjectMetrics]
+
+    def as_dict(self) -> dict:
+        return {"full": self.full.as_dict(), "observed": None if self.observed is None else self.observed.as_dict(),
+                "observed_fraction": self.observed_fraction,
+                "objects": {name: {**asdict(m), "found": m.found} for name, m in self.objects.items()}}
+
+
+def _cosines(normals: np.ndarray, nearest_normals: np.ndarray) -> np.ndarray:
+    """|n . n'| of each sample's normal with its nearest neighbour's."""
+    return np.abs((normals * nearest_normals).sum(1))
+
+
+def _scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m) -> MeshMetrics:
+    """Surface metrics from nearest distances both ways (predicted -> reference ``ab``,
+    reference -> predicted ``ba``) and the normal cosines of those nearest pairs."""
+    precision, recall = float((d_ab < threshold_m).mean()), float((d_ba < threshold_m).mean())
+    fscore = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
+    consistency = 0.5 * (cos_ab.mean() + cos_ba.mean())
+    return MeshMetrics(
+        chamfer_l1_mm=float(0.5 * (d_ab.mean() + d_ba.mean()) * 1e3), fscore=fscore, precision=precision,
+        recall=recall, threshold_mm=threshold_m * 1e3, normal_consistency=float(consistency),
+        hausdorff95_mm=float(max(np.percentile(d_ab, 95), np.percentile(d_ba, 95)) * 1e3),
+    )
+
+
+def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = None, threshold_m: float = 0.005,
+                   samples: int = 50_000, seed: int = 0) -> SceneMetrics:
+    """Full, observed-surface and per-object metrics of ``mesh`` against a Scene's objects.
+
+    observed : optional callable (points (N, 3), normals (N, 3)) -> (N,) bool telling which
+    true surface samples some view observes (:func:`rfsdf.radar.coverage.observed_mask`).
+    The IoU of the full metrics is filled in for closed meshes.
+    """
+    if len(mesh.faces) == 0:
+        raise ValueError("cannot compare an empty mesh")
+    meshes = scene.object_meshes()
+    reference = trimesh.util.concatenate(meshes)
+    owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
+    pa, na = _samples(mesh, samples, seed)
+    pb, faces = trimesh.sample.sample_surface(reference, samples, seed=seed)
+    pb, nb, owner = np.asarray(pb), np.asarray(reference.face_normals[faces]), owner_of_face[faces]
+    d_ab, i_ab = cKDTree(pb).query(pa)
+    d_ba, i_ba = cKDTree(pa).query(pb)
+    cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
+    full = with_scene_iou(_scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m), mesh, scene, seed=seed)
+    observed_metrics = observed_fraction = None
+    if observed is not None:
+        seen = np.asarray(observed(torch.as_tensor(pb), torch.as_tensor(nb)), bool)
+        observed_fraction = float(seen.mean())
+        if seen.any():
+            observed_metrics = _scored(d_ab, d_ba[seen], cos_ab, cos_ba[seen], threshold_m)
+    objects = {}
+    nearest_owner = owner[i_ab]
+    for index, obj in enumerate(scene.objects):
+        own, mine = owner == index, nearest_owner == index
+        objects[obj.name] = ObjectMetrics(
+            chamfer_l1_mm=float(0.5 * (d_ab[mine].mean() + d_ba[own].mean()) * 1e3) if mine.any() else None,
+            precision=float((d_ab[mine] < threshold_m).mean()) if mine.any() else 0.0,
+            recall=float((d_ba[own] < threshold_m).mean()))
+    return SceneMetrics(full, observed_metrics, observed_fraction, objects)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-__all__ = ["Grid"]
+__all__ = ["Grid", "interpolated_sdf"]
 
 
 @dataclass(frozen=True)
@@ -62,3 +62,23 @@ class Grid:
         lower = torch.tensor(self.lower_m, dtype=torch.float64, device=device)
         voxel = torch.tensor(self.voxel_m, dtype=torch.float64, device=device)
         return (lower + (idx.double() + 0.5) * voxel).to(dtype)
+
+
+def interpolated_sdf(values_m: torch.Tensor, grid: Grid):
+    """Callable p (N, 3) [m] -> (N,) [m]: trilinear interpolation of voxel-centre SDF values
+    (grid.shape) inside the box, plus the distance to the box outside it (a bound)."""
+    lower = torch.tensor(grid.lower_m, dtype=values_m.dtype, device=values_m.device)
+    upper = torch.tensor(grid.upper_m, dtype=values_m.dtype, device=values_m.device)
+    volume = values_m.reshape(1, 1, *grid.shape)
+
+    def sdf(points: torch.Tensor) -> torch.Tensor:
+        p = points.to(values_m.dtype)
+        inside = torch.minimum(torch.maximum(p, lower), upper)
+        normalised = 2 * (inside - lower) / (upper - lower) - 1  # (x, y, z) in [-1, 1]
+        # grid_sample indexes the last three dims as (z, y, x) = (W, H, D) order reversed.
+        coords = normalised.flip(-1).reshape(1, -1, 1, 1, 3)
+        value = torch.nn.functional.grid_sample(volume, coords, mode="bilinear", padding_mode="border",
+                                                align_corners=False).reshape(-1)
+        return (value + (p - inside).norm(dim=1)).to(points.dtype)
+
+    return sdf

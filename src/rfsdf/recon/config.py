@@ -1,14 +1,15 @@
 """Reconstruction settings (TOML, validated), with defaults sized for the presets on a CPU.
 
 Every table and key is optional; ``rfsdf reconstruct --config FILE`` overrides the defaults
-and the run folder keeps the full, resolved ``config.toml``.
+and the run folder keeps the full, resolved ``config.toml``. Names of renderers, losses and
+schedules are checked against their registries when the file is read.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
+from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, field_validator
 
 from ..config import StrictModel, load_model
 
@@ -25,42 +26,53 @@ class FieldConfig(StrictModel):
     reflectivity_floor: NonNegativeFloat = 0.02
 
 
-class RenderConfig(StrictModel):
-    renderer: Literal["physics", "local"] = "physics"
-    psf_radius_m: PositiveFloat = 0.06  # half-width of the PSF kernel the physics renderer uses
-    # View weight max(0, n.u)^e; 0 turns it off. Coherent imaging sees smooth surfaces only
-    # near specular, so a sharp lobe (16) matches the simulator's images best (README).
-    facing_exponent: NonNegativeFloat = 16.0
-    train_normals: bool = True  # the data term may turn surfaces (gradient through n)
-    band_sigmas: PositiveFloat = 3.0  # c is evaluated where |f| < band_sigmas * sigma + 1 voxel
-    band_refresh_every: PositiveInt = 10
-
-
 class InitConfig(StrictModel):
-    method: Literal["image", "sphere"] = "image"  # image: warm start from the MF image; sphere: SAL only
-    threshold: float = Field(0.15, gt=0, lt=1, description="inside where MF amplitude >= threshold * peak")
+    # mf: threshold the matched-filter image; clean: threshold its CLEAN image; sphere: SAL only
+    method: Literal["mf", "clean", "sphere"] = "clean"
+    threshold: float = Field(0.06, gt=0, lt=1, description="inside needs amplitude >= threshold * peak ...")
+    local_threshold: float = Field(0.5, ge=0, lt=1, description="... and >= local_threshold * local peak")
+    window_m: PositiveFloat = 0.03  # edge of the local-peak window [m]
+    closing_m: NonNegativeFloat = 0.012  # morphological closing of the detections, radius [m]
     steps: NonNegativeInt = 300
     lr: PositiveFloat = 1e-3
     batch: PositiveInt = 8192
 
 
-class SigmaConfig(StrictModel):
-    schedule: Literal["exponential", "constant"] = "exponential"
-    start_voxels: PositiveFloat = 3.0
-    end_voxels: PositiveFloat = 1.0
+class RenderConfig(StrictModel):
+    renderer: str = "coherent"
+    element_step: PositiveInt = 2  # image data and prediction with every n-th Tx and Rx (n^2 fewer pairs)
+    spacing_m: PositiveFloat | None = None  # surface sample spacing; default lambda / 3
+    shadows: bool = True
+    refresh_every: PositiveInt = 10  # steps between new surface samples (and facing/shadow masks)
+    smoothing_m: NonNegativeFloat = 0.006  # local mean of the surface velocity over this radius [m]
+
+    @field_validator("renderer")
+    @classmethod
+    def _known_renderer(cls, name: str) -> str:
+        from .render import RENDERERS
+
+        RENDERERS.get(name)
+        return name
 
 
 class LossConfig(StrictModel):
-    target: Literal["amplitude", "power"] = "amplitude"
-    norm: Literal["l2", "huber"] = "l2"
-    huber_delta: PositiveFloat = 0.05
+    data: str = "amplitude"
     eikonal_weight: NonNegativeFloat = 0.01
+
+    @field_validator("data")
+    @classmethod
+    def _known_loss(cls, name: str) -> str:
+        from .losses import DATA_LOSSES
+
+        DATA_LOSSES.get(name)
+        return name
 
 
 class SamplingConfig(StrictModel):
-    data_batch: PositiveInt = 8192
+    views_per_step: PositiveInt = 6
+    data_batch: PositiveInt = 4096  # data voxels per step
+    cell_voxels: PositiveInt = 2  # compare RMS amplitudes over cubes of this many voxels per edge
     data_focus: float = Field(0.5, ge=0, le=1, description="share of data voxels drawn by MF amplitude")
-    views_per_step: PositiveInt = 4
     eikonal_batch: PositiveInt = 4096
     eikonal_near: float = Field(0.5, ge=0, le=1, description="share of Eikonal points near the zero set")
 
@@ -69,19 +81,28 @@ class TrainConfig(StrictModel):
     steps: PositiveInt = 100
     lr: PositiveFloat = 1e-4
     lr_end: PositiveFloat = 1e-5
+    schedule: str = "exponential"
     reflectivity_lr_scale: PositiveFloat = 10.0  # Gamma adapts faster than f: dim, don't delete
-    weight_decay: NonNegativeFloat = 1e-4
+    geometry_delay_steps: NonNegativeInt = 0  # f is frozen for this many steps while Gamma adapts
+    weight_decay: NonNegativeFloat = 0.0
     checkpoint_every: PositiveInt = 50
     seed: int = 0
     device: str = "auto"
     mesh_resolution: PositiveInt = 128
+
+    @field_validator("schedule")
+    @classmethod
+    def _known_schedule(cls, name: str) -> str:
+        from .schedules import SCHEDULES
+
+        SCHEDULES.get(name)
+        return name
 
 
 class ReconConfig(StrictModel):
     field: FieldConfig = FieldConfig()
     init: InitConfig = InitConfig()
     render: RenderConfig = RenderConfig()
-    sigma: SigmaConfig = SigmaConfig()
     loss: LossConfig = LossConfig()
     sampling: SamplingConfig = SamplingConfig()
     train: TrainConfig = TrainConfig()

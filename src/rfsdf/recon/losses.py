@@ -1,37 +1,44 @@
-"""Losses: data fidelity between predicted and observed MF images, and the Eikonal term."""
+"""Losses: data fidelity between predicted and observed MF images, and the Eikonal term.
+
+Data losses take the predicted complex per-view images (v, X) and the observed amplitudes
+(v, X) at the same voxels, and are registered by name in ``DATA_LOSSES``. Radar data carry
+no absolute calibration, so every data loss first scales the prediction by the least-squares
+gain (held constant for the gradient, one gain for all views of the step: relative
+brightness between views is physics, not calibration), and is normalised by the observed
+energy, so 0 is a perfect fit and 1 is a prediction orthogonal to the data.
+"""
 
 from __future__ import annotations
 
 import torch
-from torch.nn import functional as F
 
 from ..geometry import gradient
+from ..registry import Registry
 
-__all__ = ["data_loss", "eikonal_loss"]
+__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "eikonal_loss"]
 
-_AMPLITUDE_EPS = 1e-10  # keeps d sqrt(P)/dP finite where the predicted power is 0
+DATA_LOSSES: Registry = Registry("data loss")
 
 
-def data_loss(predicted_power: torch.Tensor, observed_power: torch.Tensor, *, target: str = "amplitude",
-              norm: str = "l2", huber_delta: float = 0.05, fit_scale: bool = True) -> torch.Tensor:
-    """Mean misfit between MF power images (any equal shapes), on amplitude sqrt(P) or on P.
+def _gain_fitted_misfit(predicted: torch.Tensor, observed: torch.Tensor) -> torch.Tensor:
+    """sum((g p - o)^2) / sum(o^2) with the least-squares gain g = <p, o> / <p, p>, detached."""
+    with torch.no_grad():
+        gain = (predicted * observed).sum() / (predicted * predicted).sum().clamp(min=torch.finfo(predicted.dtype).tiny)
+    return ((gain * predicted - observed) ** 2).sum() / (observed**2).sum().clamp(min=torch.finfo(observed.dtype).tiny)
 
-    With ``fit_scale`` the prediction is first multiplied by the least-squares scale
-    <p, o> / <p, p> (held constant for the gradient): radar data have no absolute
-    calibration, so the fit matches the image's shape, and shrinking every surface away
-    never looks like progress.
-    """
-    if target == "amplitude":
-        predicted, observed = torch.sqrt(predicted_power + _AMPLITUDE_EPS), torch.sqrt(observed_power)
-    else:
-        predicted, observed = predicted_power, observed_power
-    if fit_scale:
-        with torch.no_grad():
-            scale = (predicted * observed).sum() / (predicted**2).sum().clamp(min=1e-20)
-        predicted = predicted * scale
-    if norm == "huber":
-        return F.huber_loss(predicted, observed, delta=huber_delta)
-    return F.mse_loss(predicted, observed)
+
+@DATA_LOSSES.register("amplitude")
+def amplitude_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor) -> torch.Tensor:
+    """Misfit of MF *amplitudes* |c_hat|: where the glints are and how bright, not the
+    carrier phase of each (an absolute phase is not a geometric fact worth fitting).
+    Equals 1 - cos^2 between the amplitude images."""
+    return _gain_fitted_misfit(predicted.abs(), observed_amplitude)
+
+
+@DATA_LOSSES.register("power")
+def power_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor) -> torch.Tensor:
+    """Misfit of MF power |c_hat|^2: weights the brightest glints more than ``amplitude``."""
+    return _gain_fitted_misfit(predicted.abs() ** 2, observed_amplitude**2)
 
 
 def eikonal_loss(sdf, points: torch.Tensor) -> torch.Tensor:

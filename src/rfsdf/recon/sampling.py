@@ -1,19 +1,19 @@
-"""Where the losses look: data voxels, Eikonal points, and the band of voxels near the surface."""
+"""Where the losses look: data voxels and Eikonal points."""
 
 from __future__ import annotations
 
 import torch
 
-__all__ = ["data_voxel_probabilities", "sample_data_voxels", "eikonal_points", "band_mask"]
+__all__ = ["data_voxel_probabilities", "sample_data_voxels", "cell_voxels", "pooled_amplitude", "eikonal_points"]
 
 
-def data_voxel_probabilities(observed_power: torch.Tensor, focus: float) -> torch.Tensor:
-    """(N,) sampling probabilities of the voxels of (V, *grid) images.
+def data_voxel_probabilities(observed_amplitude: torch.Tensor, focus: float) -> torch.Tensor:
+    """(N,) sampling probabilities of the voxels of (V, N) per-view MF amplitudes.
 
-    ``focus`` of the mass follows the view-mean MF amplitude (where the radar saw something)
+    ``focus`` of the mass follows the view-mean amplitude (where the radar saw something)
     and the rest is uniform, so empty space, where the fit must not put surfaces, still counts.
     """
-    amplitude = observed_power.mean(0).flatten().clamp(min=0).sqrt()
+    amplitude = observed_amplitude.mean(0).clamp(min=0)
     uniform = torch.full_like(amplitude, 1.0 / amplitude.numel())
     if amplitude.sum() <= 0:
         return uniform
@@ -22,22 +22,36 @@ def data_voxel_probabilities(observed_power: torch.Tensor, focus: float) -> torc
 
 def sample_data_voxels(probabilities: torch.Tensor, batch: int, generator: torch.Generator) -> torch.Tensor:
     """(batch,) voxel indices drawn with replacement."""
-    return torch.multinomial(probabilities, batch, replacement=True, generator=generator)
+    return torch.multinomial(probabilities.cpu(), batch, replacement=True, generator=generator)
+
+
+def cell_voxels(corner_index: torch.Tensor, grid_shape, size: int) -> torch.Tensor:
+    """(C, size^3) flat voxel indices of the cubes of ``size`` voxels whose lowest corners are
+    the voxels ``corner_index`` (C,), shifted back where they would leave the grid."""
+    nx, ny, nz = grid_shape
+    corner = torch.stack([corner_index // (ny * nz), (corner_index // nz) % ny, corner_index % nz], dim=1)
+    corner = torch.minimum(corner, torch.tensor([nx - size, ny - size, nz - size], device=corner.device))
+    offsets = torch.stack(torch.meshgrid(*[torch.arange(size, device=corner.device)] * 3, indexing="ij"), -1)
+    cells = corner[:, None] + offsets.reshape(1, -1, 3)
+    return (cells[..., 0] * ny + cells[..., 1]) * nz + cells[..., 2]
+
+
+def pooled_amplitude(image: torch.Tensor, cells: int) -> torch.Tensor:
+    """(v, C) root-mean-square amplitude over each cell of an image (v, C * s^3) whose voxels
+    come cell by cell: a box blur of the power, which forgives a glint misplaced within a
+    cell (the double penalty of comparing misplaced features voxel by voxel)."""
+    return (image.abs() ** 2).reshape(image.shape[0], cells, -1).mean(2).sqrt()
 
 
 def eikonal_points(lower_m, upper_m, near_points: torch.Tensor, batch: int, near_fraction: float,
                    jitter_m: float, generator: torch.Generator) -> torch.Tensor:
-    """(batch, 3) [m]: uniform in the box, and ``near_fraction`` of them near the zero level set
-    (random ``near_points``, e.g. band voxel centres, plus Gaussian jitter of ``jitter_m``)."""
+    """(batch, 3) [m] on the CPU: uniform in the box, and ``near_fraction`` of them near the
+    zero level set (random ``near_points``, e.g. surface samples, plus Gaussian jitter of ``jitter_m``)."""
     lower = torch.as_tensor(lower_m, dtype=torch.float32)
     upper = torch.as_tensor(upper_m, dtype=torch.float32)
+    near_points = near_points.detach().cpu()
     n_near = int(round(batch * near_fraction)) if len(near_points) else 0
     uniform = lower + (upper - lower) * torch.rand(batch - n_near, 3, generator=generator)
     pick = torch.randint(len(near_points), (n_near,), generator=generator) if n_near else torch.zeros(0, dtype=torch.long)
     near = near_points[pick] + jitter_m * torch.randn(n_near, 3, generator=generator)
     return torch.cat([uniform, near.clamp(lower, upper)])
-
-
-def band_mask(sdf_values: torch.Tensor, half_width_m: float) -> torch.Tensor:
-    """Boolean mask of voxels whose |f| is below ``half_width_m`` (where c is not negligible)."""
-    return sdf_values.abs() < half_width_m

@@ -1,76 +1,97 @@
-"""Fitting a RadarField to matched-filter images: the GeRaF training loop.
+"""Fitting a RadarField to radar measurements: the GeRaF training loop.
 
-A fresh run first warm-starts f from the thresholded MF image (see ``warm_start``). Each
-step: evaluate f and Gamma on the band of voxels near the current zero level set, render
-c = Gamma delta_sigma(f) into predicted MF power for a few random views, compare with the
-observed MF power on a batch of voxels, add lambda * Eikonal, take an AdamW step.
-Checkpoints are atomic and hold everything needed to continue bit for bit (network,
-optimiser, schedule, random generator, band, log), so ``resume=True`` after a kill gives
-the same result as an uninterrupted run. A NaN/Inf loss stops the run with a clear error
+A fresh run first warm-starts f (and Gamma) from a thresholded image of the data (see
+``warm_start``). Each step then renders predicted MF images of the neural surface for a
+few random views through the simulator's physics (see ``render``), compares them with the
+observed MF images on a batch of voxels (see ``losses``), adds lambda * Eikonal, and takes
+an Adam step; the surface samples and their facing/shadow masks are refreshed every
+``render.refresh_every`` steps. Checkpoints (``checkpoint``) hold everything needed to
+continue bit for bit (network, optimiser, schedule, random generator, surface samples, log)
+and a digest of the data, so ``resume=True`` after a kill gives the same result as an
+uninterrupted run, and refuses other data. A NaN/Inf loss stops the run with a clear error
 and leaves the last good checkpoint in place.
 """
 
 from __future__ import annotations
 
-import csv
-import math
-import pickle
-from dataclasses import dataclass
+import hashlib
+import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import tomli_w
 import torch
 from tqdm.auto import tqdm
 
-from ..atomic import atomic_path
 from ..errors import RfsdfError
 from ..field import RadarField, levels_for
 from ..geometry import Grid
-from ..radar import Acquisition, Image
+from ..radar import Measurements
+from ..radar.clean import clean_image
+from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import data_loss, eikonal_loss
-from .render import delta_sigma, facing_weights, make_renderer
-from .sampling import band_mask, data_voxel_probabilities, eikonal_points, sample_data_voxels
-from .schedules import exponential_decay, sigma_at
-from .warm_start import fit_to_image, image_signed_distance, local_peak_amplitude
+from .losses import DATA_LOSSES, eikonal_loss
+from .render import RENDERERS
+from .sampling import cell_voxels, data_voxel_probabilities, eikonal_points, pooled_amplitude, sample_data_voxels
+from .schedules import SCHEDULES
+from .surface import SurfaceCandidates
+from .warm_start import warm_start
 
-__all__ = ["Problem", "Trainer", "load_field", "read_checkpoint", "CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME"]
-
-CHECKPOINT_NAME = "checkpoint.pt"
-CONFIG_NAME = "config.toml"
-LOG_NAME = "log.csv"
-LOG_FIELDS = ("step", "loss", "data", "eikonal", "sigma_mm", "lr", "band_voxels")
+__all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "resolve_device"]
 
 
 @dataclass(frozen=True)
 class Problem:
-    """What the fit sees: per-view MF power on a grid, and where each view's radar sits.
+    """What the fit sees: the measurements, the voxel grid of its images, where the data
+    came from (a file name, for messages), and optionally their CLEAN power image on the
+    grid (grid.shape), when the caller has it already (else the warm start computes it)."""
 
-    observed : (V, nx, ny, nz) float32 MF power, scaled so the largest value is 1.
-    view_centres_m : (V, 3) mean Tx/Rx position of each view [m].
-    """
-
+    measurements: Measurements
     grid: Grid
-    observed: torch.Tensor
-    view_centres_m: torch.Tensor
-    acquisition: Acquisition
+    source: str = "measurements"
+    clean_power: np.ndarray | None = None
 
-    @classmethod
-    def from_image(cls, image: Image, acquisition: Acquisition) -> "Problem":
-        if image.per_view.shape[0] != acquisition.shape[0]:
-            raise RfsdfError(f"the image has {image.per_view.shape[0]} views, the measurements {acquisition.shape[0]}")
-        power = image.per_view.abs() ** 2
-        peak = float(power.max())
-        if not math.isfinite(peak) or peak <= 0:
-            raise RfsdfError("the matched-filter image is empty or not finite; nothing to fit")
-        centres = 0.5 * (acquisition.tx_m.mean(1) + acquisition.rx_m.mean(1)).float()
-        return cls(image.grid, (power / peak).float(), centres, acquisition)
+    def digest(self) -> str:
+        """SHA-256 of the samples, the acquisition geometry and the grid (hex, 16 digits)."""
+        acq, h = self.measurements.acquisition, hashlib.sha256()
+        for tensor in (self.measurements.data, acq.tx_m, acq.rx_m, acq.frequencies_hz):
+            h.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+        h.update(repr((self.grid.lower_m, self.grid.upper_m, self.grid.shape)).encode())
+        return h.hexdigest()[:16]
 
 
-def _field_kwargs(problem: Problem, config: ReconConfig) -> dict:
-    fc, grid = config.field, problem.grid
+@dataclass(frozen=True)
+class StepRecord:
+    """One line of ``log.csv``: losses (data relative misfit, Eikonal, total), learning rate,
+    surface samples, wall time of the step [s]."""
+
+    step: int
+    loss: float
+    data: float
+    eikonal: float
+    lr: float
+    samples: int
+    seconds: float
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """The fitted field, the field as the warm start left it (to measure what the fit
+    adds), and how the fit went."""
+
+    field: RadarField
+    warm_field: RadarField
+    log: list[StepRecord]
+
+    @property
+    def seconds_per_step(self) -> float:
+        """Median wall time of a step [s] (refresh steps included in the distribution)."""
+        return float(np.median([r.seconds for r in self.log])) if self.log else float("nan")
+
+
+def _field_kwargs(grid: Grid, config: ReconConfig) -> dict:
+    fc = config.field
     extent = float(np.max(np.asarray(grid.upper_m) - np.asarray(grid.lower_m)))
     levels = fc.levels if fc.levels is not None else levels_for(extent, float(grid.voxel_m.max()))
     radius = fc.init_radius_m if fc.init_radius_m is not None else extent / 6
@@ -79,10 +100,19 @@ def _field_kwargs(problem: Problem, config: ReconConfig) -> dict:
                 reflectivity_width=fc.reflectivity_width, reflectivity_floor=fc.reflectivity_floor)
 
 
-def _device(name: str) -> torch.device:
+def resolve_device(name: str) -> torch.device:
+    """'auto' (CUDA when torch sees a GPU), 'cpu' or 'cuda[:N]'; one clear error otherwise."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise RfsdfError(f"train.device: unknown device {name!r}; use auto, cpu or cuda") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise RfsdfError(f"train.device: {name!r} asked for, but torch sees no CUDA GPU here; use auto or cpu")
+    if device.type not in ("cpu", "cuda"):
+        raise RfsdfError(f"train.device: {name!r} is not supported; use auto, cpu or cuda")
+    return device
 
 
 class Trainer:
@@ -91,30 +121,30 @@ class Trainer:
     def __init__(self, problem: Problem, config: ReconConfig, run_dir, *, progress: bool = False):
         self.problem, self.config, self.run_dir = problem, config, Path(run_dir)
         self.progress = progress
-        self.device = _device(config.train.device)
-        self.field_kwargs = _field_kwargs(problem, config)
+        self.device = resolve_device(config.train.device)
+        self.field_kwargs = _field_kwargs(problem.grid, config)
         with torch.random.fork_rng():
             torch.manual_seed(config.train.seed)
             self.field = RadarField(**self.field_kwargs).to(self.device)
-        tc = config.train
+        tc, rc = config.train, config.render
         groups = [{"params": self.field.geometry.parameters(), "lr": tc.lr},
                   {"params": self.field.reflectance.parameters(), "lr": tc.lr * tc.reflectivity_lr_scale}]
         self.optimizer = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay)
-        self.scheduler = torch.optim.lr_scheduler.LambdaLR(
-            self.optimizer, lambda step: exponential_decay(step, tc.steps, 1.0, tc.lr_end / tc.lr))
+        schedule = SCHEDULES.get(tc.schedule)
+        decay = lambda step: schedule(step, tc.steps, 1.0, tc.lr_end / tc.lr)  # noqa: E731
+        # Gamma alone first: a surface the data do not show should dim before it moves.
+        delayed = lambda step: decay(step) if step >= tc.geometry_delay_steps else 0.0  # noqa: E731
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
-        self.renderer = make_renderer(config.render.renderer, problem.acquisition, problem.grid,
-                                      config.render.psf_radius_m, self.device)
-        self.points = problem.grid.points()
-        self.voxel_m = float(problem.grid.voxel_m.max())
-        self.probabilities = data_voxel_probabilities(problem.observed, config.sampling.data_focus)
-        # Moved to the device once, not on every step.
-        self.observed = problem.observed.flatten(1).to(self.device)  # (V, N)
-        self.view_centres_m = problem.view_centres_m.to(self.device)
+        self.renderer = RENDERERS.get(rc.renderer)(
+            problem.measurements, problem.grid, element_step=rc.element_step, spacing_m=rc.spacing_m,
+            shadows=rc.shadows, device=self.device, smoothing_m=rc.smoothing_m, progress=progress)
+        self.data_loss = DATA_LOSSES.get(config.loss.data)
+        self.observed = self.renderer.observed.abs()  # (V, N) amplitude, peak 1
+        self.probabilities = data_voxel_probabilities(self.observed, config.sampling.data_focus)
         self.step = 0
-        self.log: list[dict] = []
-        self.band: torch.Tensor | None = None  # (N,) bool, voxels where c is evaluated
-        self.near: torch.Tensor | None = None  # (N,) bool, voxels next to the zero level set
+        self.log: list[StepRecord] = []
+        self.warm_state: dict | None = None  # the field's state after the warm start
 
     # Checkpoints -------------------------------------------------------------------------
     @property
@@ -122,165 +152,129 @@ class Trainer:
         return self.run_dir / CHECKPOINT_NAME
 
     def save(self) -> None:
-        state = {
+        cand = self.renderer.candidates
+        surface = None if cand is None else {"anchors": cand.anchors, "gradients": cand.gradients,
+                                             "area_m2": cand.area_m2, "spacing_m": cand.spacing_m,
+                                             "lit": self.renderer.lit}
+        save_checkpoint(self.run_dir, {
             "step": self.step, "field": self.field.state_dict(), "field_kwargs": self.field_kwargs,
             "optimizer": self.optimizer.state_dict(), "scheduler": self.scheduler.state_dict(),
-            "generator": self.generator.get_state(), "band": self.band, "near": self.near, "log": self.log,
-            "config": self.config.model_dump(),
-        }
-        with atomic_path(self.checkpoint_path) as tmp:
-            torch.save(state, tmp)
-        with atomic_path(self.run_dir / LOG_NAME) as tmp, open(tmp, "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=LOG_FIELDS)
-            writer.writeheader()
-            writer.writerows(self.log)
-
-    def write_config(self) -> Path:
-        """Write the resolved config as ``run_dir/config.toml`` (atomically); returns its path."""
-        path = self.run_dir / CONFIG_NAME
-        with atomic_path(path) as tmp:
-            tmp.write_text(tomli_w.dumps(self.config.model_dump(exclude_none=True)))
-        return path
+            "generator": self.generator.get_state(), "surface": surface,
+            "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
+            "data_digest": self.problem.digest(), "data_source": self.problem.source,
+        })
+        write_log(self.run_dir, [asdict(r) for r in self.log])
 
     def load(self) -> None:
         state = read_checkpoint(self.checkpoint_path, self.device)
-        if state["config"] != self.config.model_dump():
-            raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made with another config; "
-                             "resume with the run's own config.toml")
-        if state["field_kwargs"] != self.field_kwargs:
-            raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made for another image grid; "
-                             "resume with the same data and image")
-        self.field.load_state_dict(state["field"])
-        self.optimizer.load_state_dict(state["optimizer"])
-        self.scheduler.load_state_dict(state["scheduler"])
-        self.generator.set_state(state["generator"])
-        self.step, self.band, self.near, self.log = state["step"], state["band"], state["near"], state["log"]
+        try:
+            if state["config"] != self.config.model_dump():
+                raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made with another config; "
+                                 "resume with the run's own config.toml")
+            if state["data_digest"] != self.problem.digest() or state["field_kwargs"] != self.field_kwargs:
+                raise RfsdfError(f"{self.checkpoint_path}: the run was fitted on {state['data_source']} "
+                                 f"(digest {state['data_digest']}), not on {self.problem.source} "
+                                 f"(digest {self.problem.digest()}) on this grid; resume with the same data")
+            self.field.load_state_dict(state["field"])
+            self.optimizer.load_state_dict(state["optimizer"])
+            self.scheduler.load_state_dict(state["scheduler"])
+            self.generator.set_state(state["generator"])
+            surface = state["surface"]
+            if surface is not None:
+                self.renderer.candidates = SurfaceCandidates(surface["anchors"], surface["gradients"],
+                                                             surface["area_m2"], surface["spacing_m"])
+                self.renderer.lit = surface["lit"]
+            self.step = state["step"]
+            self.log = [StepRecord(**row) for row in state["log"]]
+            self.warm_state = state["warm_field"]
+        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+            if isinstance(exc, RfsdfError):
+                raise
+            raise RfsdfError(f"{self.checkpoint_path}: not a readable rfsdf checkpoint ({exc})") from None
 
     # Training ----------------------------------------------------------------------------
     def warm_start(self) -> None:
-        """Pre-fit f to the signed distance of the thresholded view-mean MF image, and Gamma
-        to its local peak amplitude (see ``warm_start``)."""
+        """Pre-fit f to the signed distance of a thresholded image (view-mean MF power, or its
+        CLEAN image), and Gamma to its local peak amplitude (see ``warm_start``)."""
         ic = self.config.init
-        if ic.method != "image" or ic.steps == 0:
+        if ic.method == "sphere" or ic.steps == 0:
             return
-        mean_power = self.problem.observed.mean(0).numpy()
-        distance = image_signed_distance(mean_power, self.problem.grid, ic.threshold)
-        window = round(self.config.render.psf_radius_m / 2 / self.voxel_m)
-        peak = local_peak_amplitude(mean_power, window)
-        fit_to_image(self.field, self.points.to(self.device), torch.from_numpy(distance).flatten().to(self.device),
-                     torch.from_numpy(peak).flatten().to(self.device), steps=ic.steps, lr=ic.lr, batch=ic.batch,
-                     eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator,
-                     progress=self.progress)
-
-    def sigma_m(self, step: int) -> float:
-        sc = self.config.sigma
-        return sigma_at(step, self.config.train.steps, sc.start_voxels * self.voxel_m,
-                        sc.end_voxels * self.voxel_m, sc.schedule)
+        grid = self.problem.grid
+        if ic.method == "clean":
+            power = self.problem.clean_power
+            if power is None:
+                power = clean_image(self.problem.measurements, grid, progress=self.progress).power.numpy()
+        else:
+            power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
+        warm_start(self.field, power, grid, threshold=ic.threshold, local_threshold=ic.local_threshold,
+                   window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
+                   eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
-    def refresh_band(self, sigma_m: float) -> None:
-        """Evaluate f on every voxel and keep those where c can be non-negligible."""
-        values = torch.cat([self.field.sdf(chunk.to(self.device)).cpu() for chunk in self.points.split(1 << 16)])
-        half_width = self.config.render.band_sigmas * sigma_m + self.voxel_m
-        self.band = band_mask(values, half_width)
-        self.near = band_mask(values, max(sigma_m, self.voxel_m))
+    def refresh_surface(self) -> None:
+        """New surface samples of the current field (and their facing/shadow masks)."""
+        points = self.problem.grid.points(device=self.device)
+        values = torch.cat([self.field.sdf(chunk) for chunk in points.split(1 << 16)])
+        self.renderer.refresh(self.field.sdf, values, self.generator)
 
-    def loss_terms(self, sigma_m: float) -> dict[str, torch.Tensor]:
+    def loss_terms(self) -> dict[str, torch.Tensor]:
         """Data and Eikonal losses for one step (draws from the generator)."""
-        cfg, problem = self.config, self.problem
-        index = self.band.nonzero()[:, 0]
-        points = self.points[index].to(self.device).requires_grad_(True)
-        f, gamma = self.field.sdf_and_reflectivity(points)
-        (grad,) = torch.autograd.grad(f.sum(), points, retain_graph=True, create_graph=cfg.render.train_normals)
-        normals = torch.nn.functional.normalize(grad, dim=1)
-        views = torch.randperm(len(self.view_centres_m), generator=self.generator)[:cfg.sampling.views_per_step]
+        cfg = self.config
+        views = torch.randperm(self.renderer.num_views, generator=self.generator)[:cfg.sampling.views_per_step]
         views = views.sort().values.to(self.device)
-        weights = facing_weights(points.detach(), normals, self.view_centres_m[views],
-                                 cfg.render.facing_exponent)
-        c = gamma * delta_sigma(f, sigma_m)
-        intensity = torch.zeros(len(views), problem.grid.size, device=self.device)
-        intensity = intensity.index_copy(1, index.to(self.device), weights * c**2)
-        predicted = self.renderer(intensity.reshape(len(views), *problem.grid.shape), views)
-        voxels = sample_data_voxels(self.probabilities, cfg.sampling.data_batch, self.generator).to(self.device)
+        size = cfg.sampling.cell_voxels
+        corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
+        voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
+        predicted = self.renderer(self.field, views, voxels)
         observed = self.observed[views][:, voxels]
-        data = data_loss(predicted.flatten(1)[:, voxels], observed, target=cfg.loss.target,
-                         norm=cfg.loss.norm, huber_delta=cfg.loss.huber_delta)
-        near = self.points[self.near] if self.near.any() else self.points[index]
-        eik_points = eikonal_points(problem.grid.lower_m, problem.grid.upper_m, near, cfg.sampling.eikonal_batch,
-                                    cfg.sampling.eikonal_near, sigma_m, self.generator)
+        if size > 1:
+            predicted, observed = pooled_amplitude(predicted, len(corners)), pooled_amplitude(observed, len(corners))
+        data = self.data_loss(predicted, observed)
+        grid = self.problem.grid
+        eik_points = eikonal_points(grid.lower_m, grid.upper_m, self.renderer.candidates.anchors,
+                                    cfg.sampling.eikonal_batch, cfg.sampling.eikonal_near,
+                                    float(np.max(grid.voxel_m)), self.generator)
         eikonal = eikonal_loss(self.field.sdf, eik_points.to(self.device))
         return {"data": data, "eikonal": eikonal, "loss": data + cfg.loss.eikonal_weight * eikonal}
 
-    def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> RadarField:
-        """Train to ``config.train.steps``; returns the field. See the module docstring."""
-        tc, rc = self.config.train, self.config.render
+    def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> FitResult:
+        """Train to ``config.train.steps``; returns the field and the log. See the module docstring."""
+        tc = self.config.train
         if resume and self.checkpoint_path.exists():
             self.load()
         elif self.checkpoint_path.exists():
-            raise RfsdfError(f"{self.run_dir}: already holds a run; pass --resume to continue it or choose another --out")
+            raise RfsdfError(f"{self.run_dir}: already holds a run; resume it or choose another output folder")
         else:
-            self.write_config()
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            write_config(self.run_dir, self.config)
             self.warm_start()
+            self.warm_state = {k: v.detach().clone() for k, v in self.field.state_dict().items()}
             self.save()  # a run killed from here on resumes after the warm start
         bar = tqdm(total=tc.steps, initial=self.step, desc="fit", disable=not self.progress)
         while self.step < tc.steps:
-            sigma = self.sigma_m(self.step)
-            if self.band is None or self.step % rc.band_refresh_every == 0:
-                self.refresh_band(sigma)
-            terms = self.loss_terms(sigma)
+            clock = time.perf_counter()
+            if self.renderer.candidates is None or self.step % self.config.render.refresh_every == 0:
+                self.refresh_surface()
+            terms = self.loss_terms()
             if not all(torch.isfinite(v) for v in terms.values()):
                 bad = ", ".join(f"{k}={float(v.detach())}" for k, v in terms.items())
-                kept = f"last good checkpoint kept at {self.checkpoint_path}" if self.checkpoint_path.exists() \
-                    else "no checkpoint was written yet"
-                raise RfsdfError(f"step {self.step}: loss is not finite ({bad}); stopped, {kept}")
+                raise RfsdfError(f"step {self.step}: loss is not finite ({bad}); stopped, "
+                                 f"last good checkpoint kept at {self.checkpoint_path}")
             self.optimizer.zero_grad(set_to_none=True)
             terms["loss"].backward()
             self.optimizer.step()
             self.scheduler.step()
             self.step += 1
-            self.log.append({"step": self.step, **{k: float(v.detach()) for k, v in terms.items()},
-                             "sigma_mm": sigma * 1e3, "lr": self.scheduler.get_last_lr()[0],
-                             "band_voxels": int(self.band.sum())})
+            self.log.append(StepRecord(self.step, *(float(terms[k].detach()) for k in ("loss", "data", "eikonal")),
+                                       self.scheduler.get_last_lr()[0], len(self.renderer.candidates),
+                                       round(time.perf_counter() - clock, 3)))
             bar.update(1)
-            bar.set_postfix(data=f"{float(terms['data'].detach()):.3g}", eik=f"{float(terms['eikonal'].detach()):.3g}",
-                            sigma=f"{sigma * 1e3:.1f}mm")
+            bar.set_postfix(data=f"{self.log[-1].data:.3g}", eik=f"{self.log[-1].eikonal:.3g}")
             if self.step % tc.checkpoint_every == 0 or self.step == tc.steps:
                 self.save()
             if on_step is not None:
                 on_step(self.step)
         bar.close()
-        return self.field
-
-
-def load_field(run_dir) -> RadarField:
-    """The trained field of a run folder (from its checkpoint), on the CPU, in eval mode."""
-    path = Path(run_dir) / CHECKPOINT_NAME
-    if not path.exists():
-        raise RfsdfError(f"{run_dir}: no {CHECKPOINT_NAME}; is this a run folder from `rfsdf reconstruct`?")
-    state = read_checkpoint(path, "cpu")
-    try:
-        field = RadarField(**state["field_kwargs"])
-        field.load_state_dict(state["field"])
-    except (RuntimeError, KeyError, TypeError) as exc:
-        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint ({exc})") from None
-    return field.eval()
-
-
-def read_checkpoint(path, device) -> dict:
-    """The state dict of a checkpoint file, loaded as data only.
-
-    ``weights_only=True``: the unpickler accepts tensors, numbers, strings and containers
-    and refuses everything else, so a crafted checkpoint cannot run code (a plain
-    ``torch.load`` would execute whatever a pickle in the file asks for).
-    """
-    try:
-        state = torch.load(path, map_location=device, weights_only=True)
-    except pickle.UnpicklingError:
-        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint (it holds objects other than tensors, "
-                         "numbers and strings; refused without running them)") from None
-    except Exception as exc:  # noqa: BLE001 - any other failure to read it means "not a checkpoint"
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint ({reason})") from None
-    if not isinstance(state, dict):
-        raise RfsdfError(f"{path}: not a readable rfsdf checkpoint (holds a {type(state).__name__}, not a dict)")
-    return state
+        warm = RadarField(**self.field_kwargs).to(self.device)
+        warm.load_state_dict(self.warm_state)
+        return FitResult(self.field, warm.eval(), self.log)

@@ -1,47 +1,47 @@
-"""Where the fit starts: f pre-fitted to the signed distance of the thresholded MF image.
+"""Where the fit starts: f pre-fitted to the signed distance of a thresholded image.
 
-The rendering kernel delta_sigma(f) has no gradient where |f| >> sigma, so a surface that
-starts far from an object never finds it; a sphere start only works for objects it
-touches. The matched-filter image already says roughly where things are: voxels whose
-view-mean MF amplitude exceeds ``threshold`` of its peak are taken as inside, the signed
-Euclidean distance to that set's boundary is the target, and f is regressed onto it (L1,
-clipped, plus the Eikonal term) before the GeRaF loss takes over. The reflectivity is
-regressed at the same time onto the local peak of the MF amplitude (a max filter over the
-PSF's cross-range width), so weak reflectors (wood, drywall) start dim instead of being
-explained away by moving their surfaces.
+The coherent fit refines a surface that is roughly right (a few mm of smooth error); it
+does not find objects from nothing. The image of the data (view-mean MF power, or its
+CLEAN image) says roughly where things are. A voxel is taken as inside where the image
+amplitude exceeds both ``local_threshold`` of the *local* peak (the maximum over a window
+of about a PSF, like a CFAR detector: every object is cut at its own half-amplitude
+contour, so strong objects are not bloated by their blur and weak ones are kept) and
+``threshold`` of the global peak (which drops what is only noise and far sidelobes). The
+signed Euclidean distance to that set's boundary is the target, and f is regressed onto
+it (L1, clipped, plus the Eikonal term) at random points in the box. The reflectivity is
+regressed at the same time onto the local peak amplitude, so weak reflectors (wood,
+drywall) start dim instead of being explained away by moving their surfaces.
+
+On the demo scene the local rule is what makes the start useful: marching cubes on the
+CLEAN image cut this way scores Chamfer-L1 7.0 mm (F 0.59), against 10.3 mm for the best
+global threshold of the same image and 9.7 mm for the best global threshold of the MF
+image (README, "Warm start").
 """
 
 from __future__ import annotations
+
+from typing import Callable
 
 import numpy as np
 import torch
 from scipy import ndimage
 from tqdm.auto import tqdm
 
-from ..geometry import Grid
+from ..geometry import Grid, interpolated_sdf
+from ..radar.detection import amplitude_of, detection_mask
 from .losses import eikonal_loss
 
-__all__ = ["image_signed_distance", "local_peak_amplitude", "fit_to_image"]
+__all__ = ["mask_signed_distance", "local_peak_amplitude", "fit_to_image", "warm_start"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
 
 
-def _amplitude(power: np.ndarray) -> np.ndarray:
-    """sqrt(power) in float64; negative values (round-off) count as 0."""
-    return np.sqrt(np.maximum(np.asarray(power, float), 0))
+def mask_signed_distance(inside: np.ndarray, grid: Grid) -> np.ndarray:
+    """(nx, ny, nz) float32 signed distance [m] to the boundary of a voxel set, negative inside.
 
-
-def image_signed_distance(power: np.ndarray, grid: Grid, threshold: float) -> np.ndarray:
-    """(nx, ny, nz) float32 signed distance [m] to the set where sqrt(power) >= threshold * max.
-
-    Negative inside. Distances run between voxel centres, so the boundary sits half a voxel
-    outside the last inside voxel. Raises ValueError when the set is empty or the whole box.
+    Distances run between voxel centres, so the boundary sits half a voxel outside the last
+    inside voxel.
     """
-    amplitude = _amplitude(power)
-    inside = amplitude >= threshold * amplitude.max() if amplitude.max() > 0 else np.zeros(amplitude.shape, bool)
-    if not inside.any() or inside.all():
-        raise ValueError(f"MF threshold {threshold:g} of the peak amplitude selects "
-                         f"{'no' if not inside.any() else 'every'} voxel; choose another init.threshold")
     voxel = tuple(float(v) for v in grid.voxel_m)
     half = 0.5 * float(np.mean(voxel))
     outside_distance = ndimage.distance_transform_edt(~inside, sampling=voxel) - half
@@ -51,32 +51,67 @@ def image_signed_distance(power: np.ndarray, grid: Grid, threshold: float) -> np
 
 def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
     """(nx, ny, nz) float32 max of sqrt(power) over a cube of ``window_voxels``, peak 1."""
-    amplitude = _amplitude(power)
+    amplitude = amplitude_of(power)
     peak = ndimage.maximum_filter(amplitude, size=max(1, int(window_voxels)))
     return (peak / max(float(peak.max()), 1e-30)).astype(np.float32)
 
 
-def fit_to_image(field, points_m: torch.Tensor, sdf_target_m: torch.Tensor, reflectivity_target: torch.Tensor, *,
+def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectivity: Callable | None, *,
                  steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                  progress: bool = False) -> float:
-    """Regress ``field`` (a RadarField) onto targets (N,) at ``points_m`` (N, 3) by Adam.
+    """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
-    f by clipped L1 against ``sdf_target_m`` plus the Eikonal term (on a quarter of the
-    batch); Gamma by L1 against ``reflectivity_target`` (None: f only). Each step draws
-    ``batch`` points. Returns the last clipped L1 residual of f [m].
+    Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
+    net is pinned between voxel centres too): f by clipped L1 against ``target_sdf`` plus
+    the Eikonal term (on a quarter of the batch), Gamma by L1 against
+    ``target_reflectivity`` (None: f only). Returns the last clipped L1 residual of f [m].
     """
+    device = next(field.parameters()).device
+    lower = torch.as_tensor(lower_m, dtype=torch.float32)
+    extent = torch.as_tensor(upper_m, dtype=torch.float32) - lower
     optimizer = torch.optim.Adam(field.parameters(), lr=lr)
     residual = float("nan")
     for _ in tqdm(range(steps), desc="warm start", disable=not progress, leave=False):
-        index = torch.randint(len(points_m), (batch,), generator=generator).to(points_m.device)
-        points = points_m[index]
+        points = (lower + extent * torch.rand(batch, 3, generator=generator)).to(device)
         f, gamma = field.sdf_and_reflectivity(points)
-        misfit = (f - sdf_target_m[index]).abs().clamp(max=_CLIP_M).mean()
+        with torch.no_grad():
+            target = target_sdf(points)
+        misfit = (f - target).abs().clamp(max=_CLIP_M).mean()
         loss = misfit + eikonal_weight * eikonal_loss(field.sdf, points[: max(1, batch // 4)])
-        if reflectivity_target is not None:
-            loss = loss + (gamma - reflectivity_target[index]).abs().mean()
+        if target_reflectivity is not None:
+            with torch.no_grad():
+                target_gamma = target_reflectivity(points)
+            loss = loss + (gamma - target_gamma).abs().mean()
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
         residual = float(misfit.detach())
     return residual
+
+
+def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
+               closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
+               progress: bool = False) -> float:
+    """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
+    signed distance of :func:`detection_mask`, Gamma to the local peak amplitude (both
+    interpolated between voxel centres). ``window_m`` [m] is the local window's edge.
+    Returns the last clipped L1 residual of f [m]."""
+    device = next(field.parameters()).device
+    window = max(1, round(window_m / float(np.max(grid.voxel_m))))
+    inside = detection_mask(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window)
+    radius = round(closing_m / float(np.max(grid.voxel_m)))
+    if radius > 0:  # join the separate glints of one smooth object into one volume
+        ball = np.linalg.norm(np.mgrid[-radius:radius + 1, -radius:radius + 1, -radius:radius + 1], axis=0) <= radius
+        inside = ndimage.binary_closing(np.pad(inside, radius), structure=ball)[radius:-radius, radius:-radius, radius:-radius]
+    distance = torch.from_numpy(mask_signed_distance(inside, grid)).to(device)
+    peak = torch.from_numpy(local_peak_amplitude(power, window)).to(device)
+    return fit_to_image(field, grid.lower_m, grid.upper_m, interpolated_sdf(distance, grid),
+                        _interpolated(peak, grid), steps=steps, lr=lr, batch=batch,
+                        eikonal_weight=eikonal_weight, generator=generator, progress=progress)
+
+
+def _interpolated(values: torch.Tensor, grid: Grid) -> Callable:
+    """Trilinear interpolation of voxel-centre values inside the box (clamped at its faces)."""
+    inside = interpolated_sdf(values, grid)
+    lower, upper = (torch.tensor(b, device=values.device) for b in (grid.lower_m, grid.upper_m))
+    return lambda p: inside(torch.minimum(torch.maximum(p, lower), upper))

@@ -1,4 +1,4 @@
-"""Training curves of a reconstruction run: loss terms, and the annealed sigma."""
+"""Training curves of a reconstruction run: the loss terms, and the surface sample count."""
 
 from __future__ import annotations
 
@@ -9,21 +9,19 @@ from .figures import plt, save_figure
 __all__ = ["plot_training_curves"]
 
 
-def plot_training_curves(log: list[dict], path, *, title: str = "") -> Path:
-    """Save the data and Eikonal losses (log scale) and sigma [mm] against the step.
-
-    ``log`` : rows with keys step, data, eikonal, sigma_mm (a run's log.csv, as dicts).
-    """
-    steps = [float(row["step"]) for row in log]
-    fig, (loss_ax, sigma_ax) = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
-    for key in ("data", "eikonal"):
-        loss_ax.semilogy(steps, [float(row[key]) for row in log], label=key)
+def plot_training_curves(log, path, *, title: str = "") -> Path:
+    """Save the data misfit and Eikonal loss (log scale) and the number of surface samples
+    against the step. ``log`` : StepRecords (fields step, data, eikonal, samples)."""
+    steps = [r.step for r in log]
+    fig, (loss_ax, sample_ax) = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
+    loss_ax.semilogy(steps, [r.data for r in log], label="data (relative misfit)")
+    loss_ax.semilogy(steps, [r.eikonal for r in log], label="Eikonal")
     loss_ax.set_xlabel("step")
-    loss_ax.set_ylabel("loss")
+    loss_ax.set_ylabel("loss [1]")
     loss_ax.legend()
-    sigma_ax.plot(steps, [float(row["sigma_mm"]) for row in log], color="k")
-    sigma_ax.set_xlabel("step")
-    sigma_ax.set_ylabel("sigma [mm]")
+    sample_ax.plot(steps, [r.samples for r in log], color="k")
+    sample_ax.set_xlabel("step")
+    sample_ax.set_ylabel("surface samples [count]")
     if title:
         fig.suptitle(title)
     return save_figure(fig, path)
