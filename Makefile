@@ -27,9 +27,9 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/operator_throughput.py
 	$(BIN)/python benchmarks/demo_matched_filter.py
-	$(BIN)/python benchmarks/quality.py --renderer physics
-	$(BIN)/python benchmarks/quality.py --renderer local
-	$(BIN)/python benchmarks/model_bias.py --renderer physics
-	$(BIN)/python benchmarks/facing_lobe.py
+	$(BIN)/python benchmarks/quality.py
+	$(BIN)/python benchmarks/quality.py --scene examples/scenes/untuned.toml
+	$(BIN)/python benchmarks/quality.py --radar dense-77g
+	$(BIN)/python benchmarks/model_bias.py
 	$(BIN)/python benchmarks/coherent_model.py
 	$(BIN)/python benchmarks/object_contrast.py

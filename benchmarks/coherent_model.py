@@ -1,9 +1,16 @@
 """How exactly must the geometry be known before a coherent renderer pays off? Render the
 *true* scene coherently (the simulator's own surface reflectivity on a fresh surface
-sampling, through A, then imaged by the same matched filter) with each sample moved along its normal by Gaussian errors of
-standard deviation 0, lambda/16, lambda/8 and lambda/4, and correlate each view's
-predicted MF amplitude with the observed one (the metric of ``facing_lobe.py``, where the
-incoherent physics renderer of the true scene scores 0.72).
+sampling, through A, then imaged by the same matched filter), perturb the surface, and
+compare each view's predicted MF amplitude with the observed one: the mean per-view
+correlation (the metric of ``facing_lobe.py``, where the incoherent physics renderer of the
+true scene scores 0.72) and the fit's data loss (amplitude L2 after a least-squares gain).
+
+Perturbations, each sample moved along its normal (or rigidly):
+* ``white``: independent Gaussian errors per sample (a rough surface), std lambda/16..lambda/4;
+* ``dilation``: every sample by the same distance (the object grown);
+* ``shift``: the whole scene translated (along a fixed oblique direction);
+* ``smooth``: a smooth Gaussian random field of 20 mm correlation length, by its std.
+White jitter is what a neural SDF does *not* produce; its errors are smooth.
 
 Usage: python benchmarks/coherent_model.py [--out benchmarks/results/coherent_model.json]
 """
@@ -14,13 +21,31 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
 import torch
 from demo_data import demo_data
+from scipy import ndimage
 
 from rfsdf.radar import Measurements, SensingOperator, matched_filter
 from rfsdf.radar.simulate import view_reflectivities
 
-ERRORS_IN_WAVELENGTHS = (0.0, 1 / 16, 1 / 8, 1 / 4)
+AMOUNTS_MM = (0.5, 1.0, 2.0, 4.0, 8.0)
+WHITE_IN_WAVELENGTHS = (1 / 16, 1 / 8, 1 / 4)
+CORRELATION_LENGTH_M = 0.02
+SHIFT_DIRECTION = (0.6, 0.48, 0.64)  # unit, oblique to every axis
+
+
+def smooth_field(points: torch.Tensor, lower_m, upper_m, generator: torch.Generator) -> torch.Tensor:
+    """(Q,) unit-std Gaussian random field with autocorrelation exp(-r^2 / 2 l^2), l = 20 mm,
+    at ``points``: white noise on a 2 mm grid, Gaussian-filtered, interpolated."""
+    step = 0.002
+    lower, upper = np.asarray(lower_m) - 0.05, np.asarray(upper_m) + 0.05
+    shape = tuple(int(np.ceil(e / step)) + 1 for e in upper - lower)
+    noise = torch.randn(shape, generator=generator, dtype=torch.float64).numpy()
+    field = ndimage.gaussian_filter(noise, CORRELATION_LENGTH_M / np.sqrt(2) / step, mode="wrap")
+    field /= field.std()
+    coords = ((points.double().numpy() - lower) / step).T
+    return torch.from_numpy(ndimage.map_coordinates(field, coords, order=1)).float()
 
 
 def main() -> None:
@@ -29,25 +54,49 @@ def main() -> None:
     args = parser.parse_args()
 
     data = demo_data()
-    acq, image = data.measurements.acquisition, data.image
+    acq, image, scene = data.measurements.acquisition, data.image, data.scene
     wavelength = acq.wavelength_m
-    samples = data.scene.sample_surface(wavelength / 3, seed=data.settings.seed + 1,
-                                        max_samples=data.settings.max_surface_samples)
-    c = view_reflectivities(data.scene, samples, acq)
+    samples = scene.sample_surface(wavelength / 3, seed=data.settings.seed + 1,
+                                   max_samples=data.settings.max_surface_samples)
+    c = view_reflectivities(scene, samples, acq)
     operator = SensingOperator(acq)
     observed = image.per_view.flatten(1).abs()
-    result: dict = {"wavelength_mm": wavelength * 1e3, "surface_samples": len(samples.points),
-                    "mean_amplitude_correlation": {}}
+    observed = observed / observed.max()
     generator = torch.Generator().manual_seed(0)
-    for error in ERRORS_IN_WAVELENGTHS:
-        offset = error * wavelength * torch.randn(len(samples.points), 1, generator=generator)
+    points, normals = samples.points, samples.normals
+
+    def score(moved: torch.Tensor) -> dict:
         with torch.no_grad():
-            y = operator.forward(samples.points + offset * samples.normals, c)
+            y = operator.forward(moved, c)
         predicted = matched_filter(Measurements(acq, y), image.grid).per_view.flatten(1).abs()
         correlation = [float(torch.corrcoef(torch.stack([p, o]))[0, 1]) for p, o in zip(predicted, observed)]
-        key = f"error {error * wavelength * 1e3:.2f} mm (lambda * {error:g})"
-        result["mean_amplitude_correlation"][key] = sum(correlation) / len(correlation)
-        print(key, round(result["mean_amplitude_correlation"][key], 3), flush=True)
+        gain = float((predicted * observed).sum() / (predicted**2).sum())
+        loss = float(((gain * predicted - observed) ** 2).mean())
+        return {"correlation": float(np.mean(correlation)), "loss": loss}
+
+    field = smooth_field(points, scene.lower_m, scene.upper_m, generator)
+    shift = torch.tensor(SHIFT_DIRECTION)
+    moves = {
+        "dilation": lambda a: points + a * normals,
+        "shift": lambda a: points + a * shift,
+        "smooth": lambda a: points + (a * field)[:, None] * normals,
+    }
+    result: dict = {"wavelength_mm": wavelength * 1e3, "surface_samples": len(points),
+                    "correlation_length_mm": CORRELATION_LENGTH_M * 1e3, "none": score(points)}
+    print("none", result["none"], flush=True)
+    white = torch.randn(len(points), 1, generator=generator)
+    result["white"] = {}
+    for error in WHITE_IN_WAVELENGTHS:
+        key = f"{error * wavelength * 1e3:.2f} mm (lambda * {error:g})"
+        result["white"][key] = score(points + error * wavelength * white * normals)
+        print("white", key, result["white"][key], flush=True)
+    for kind, move in moves.items():
+        result[kind] = {}
+        for amount in AMOUNTS_MM:
+            result[kind][f"{amount:g} mm"] = score(move(amount * 1e-3))
+            print(kind, amount, result[kind][f"{amount:g} mm"], flush=True)
+        if kind != "smooth":  # the loss must rise on both sides of the truth
+            result[kind]["-2 mm"] = score(move(-2e-3))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2))
     print(json.dumps(result, indent=2))

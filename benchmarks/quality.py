@@ -1,8 +1,9 @@
-"""Reconstruction quality and wall time of the default `rfsdf demo` (scene `objects`, radar
-`near-77g`, 6 mm MF voxels): the GeRaF fit with one renderer, and the MF-threshold baseline
-at its best threshold, both scored against the true surfaces.
+"""Reconstruction quality and wall time of `rfsdf demo` (default: scene `objects`, radar
+`near-77g`, 6 mm image voxels): the GeRaF fit and every baseline, scored against the true
+surfaces (full surface, observed surface, per object), with the time of each stage and of
+a fit step.
 
-Usage: python benchmarks/quality.py [--renderer physics|local] [--out benchmarks/results/quality-RENDERER.json]
+Usage: python benchmarks/quality.py [--scene S] [--radar R] [--out benchmarks/results/quality-SCENE-RADAR.json]
 """
 
 from __future__ import annotations
@@ -18,18 +19,19 @@ from rfsdf.demo import DemoSettings, metrics_table, run_demo
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--renderer", choices=("physics", "local"), default="physics")
+    parser.add_argument("--scene", default=DemoSettings.scene)
+    parser.add_argument("--radar", default=DemoSettings.radar)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    out = args.out or Path(f"benchmarks/results/quality-{args.renderer}.json")
+    out = args.out or Path(f"benchmarks/results/quality-{Path(args.scene).stem}-{Path(args.radar).stem}.json")
 
-    settings = dataclasses.replace(DemoSettings(), recon={"render": {"renderer": args.renderer}})
+    settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar)
     with tempfile.TemporaryDirectory() as folder:
-        result = run_demo(folder, settings, progress=False)
+        result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2))
+    out.write_text(json.dumps(result.as_dict(), indent=2))
     print(metrics_table(result))
-    print(json.dumps(result["timings_s"]))
+    print(json.dumps({"timings_s": result.timings_s, "seconds_per_step": result.seconds_per_step}))
 
 
 if __name__ == "__main__":
