@@ -176,8 +176,11 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
     from .recon import Problem, Trainer, load_recon_config
+    from .recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
 
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
+    if resume and (out / CHECKPOINT_NAME).exists():
+        read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
     if image_path is not None:
         image = read_image(image_path)
@@ -195,7 +198,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
 
 def _run_config(run: Path) -> Path | None:
-    from .recon.trainer import CONFIG_NAME
+    from .recon.checkpoint import CONFIG_NAME
 
     path = run / CONFIG_NAME
     return path if path.exists() else None
