@@ -12,6 +12,7 @@ from rfsdf.geometry import Grid
 from rfsdf.materials import fresnel
 from rfsdf.radar import load_radar, simulate
 from rfsdf.radar.scattering import lit_mask
+from rfsdf.radar.simulate import SAMPLES_PER_WAVELENGTH
 from rfsdf.recon import (
     CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss, load_field, project_to_surface,
     surface_candidates,
@@ -36,8 +37,10 @@ def tiny_radar(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def sphere_data(tiny_radar):
+    """The ball sampled at lambda/6: at the simulator's default lambda/3 the sampling speckle
+    alone moves the best radius by about a millimetre on this small radar."""
     scene = load_scene("sphere")
-    return scene, simulate(scene, tiny_radar, seed=0)
+    return scene, simulate(scene, tiny_radar, seed=0, spacing_m=tiny_radar.acquisition().wavelength_m / 6)
 
 
 class _Ball(torch.nn.Module):
@@ -79,7 +82,7 @@ def test_renderer_on_the_true_samples_reproduces_the_simulator(sphere_data, tiny
     clean = simulate(scene, radar, seed=3)
     renderer = CoherentRenderer(clean, _grid(8))
     acq = clean.acquisition
-    samples = scene.sample_surface(acq.wavelength_m / 3, seed=3, max_samples=150_000)  # simulate's own samples
+    samples = scene.sample_surface(acq.wavelength_m / SAMPLES_PER_WAVELENGTH, seed=3, max_samples=150_000)  # simulate's
     eps = torch.tensor([complex(o.material.permittivity(acq.center_frequency_hz)) for o in scene.objects])
     for view in range(acq.shape[0]):
         lit = lit_mask(samples.points, samples.normals, renderer.tx_centres[view], renderer.rx_centres[view],
@@ -152,15 +155,21 @@ def _mean_radius(field, renderer) -> float:
 
 
 def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
+    """From a 3 mm dilation to within lambda/4 of the truth. Not closer: with 6 views of a 4 cm
+    array, the amplitude loss of the ball's radius ripples with period lambda/2 (the glint
+    and the limb interfere; measured: local minima near 20, 21 and 22 mm of about the same
+    depth), so this radar cannot pin the radius to a fraction of a millimetre."""
     _, data = sphere_data
-    trainer = Trainer(Problem(data, _grid()), _config(steps=40), tmp_path / "run")
+    trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5), tmp_path / "run")
     dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
     fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
                  eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
     assert _mean_radius(trainer.field, trainer.renderer) == pytest.approx(RADIUS + 0.003, abs=3e-4)
     fit = trainer.fit()
-    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=3e-4)
-    assert len(fit.log) == 40 and fit.log[-1].data < fit.log[0].data
+    wavelength = data.acquisition.wavelength_m
+    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 4)
+    first, last = (sum(r.data for r in rows) / 5 for rows in (fit.log[:5], fit.log[-5:]))
+    assert len(fit.log) == 40 and last < first
 
 
 def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path):
