@@ -2,8 +2,10 @@
 *true* scene coherently (the simulator's own surface reflectivity on a fresh surface
 sampling, through A, then imaged by the same matched filter), perturb the surface, and
 compare each view's predicted MF amplitude with the observed one: the mean per-view
-correlation (the metric of ``facing_lobe.py``, where the incoherent physics renderer of the
-true scene scores 0.72) and the fit's data loss (amplitude L2 after a least-squares gain).
+correlation (the deleted incoherent physics renderer scored 0.72 on the exact surface)
+and the fit's relative data loss (amplitude L2 after a least-squares gain). With no
+perturbation the correlation is not 1: the fresh lambda/3 sampling has its own speckle
+(``radar/simulate.py``).
 
 Perturbations, each sample moved along its normal (or rigidly):
 * ``white``: independent Gaussian errors per sample (a rough surface), std lambda/16..lambda/4;
@@ -74,7 +76,7 @@ def main() -> None:
         predicted = matched_filter(Measurements(acq, y), image.grid).per_view.flatten(1).abs()
         correlation = [float(torch.corrcoef(torch.stack([p, o]))[0, 1]) for p, o in zip(predicted, observed)]
         gain = float((predicted * observed).sum() / (predicted**2).sum())
-        loss = float(((gain * predicted - observed) ** 2).mean())
+        loss = float(((gain * predicted - observed) ** 2).sum() / (observed**2).sum())  # relative, as the fit
         return {"correlation": float(np.mean(correlation)), "loss": loss}
 
     field = smooth_field(points, scene.lower_m, scene.upper_m, generator)
