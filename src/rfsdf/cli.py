@@ -112,12 +112,12 @@ def _image_box(data: Path, measurements, bounds: str | None, scene_name: str | N
     return tuple(sc.lower_m), tuple(sc.upper_m)
 
 
-def _voxel(voxel_m: float | None, lower, upper) -> float:
-    """--voxel, or the box's longest edge / 64 when unset."""
+def _voxel(voxel_m: float | None, lower, upper, voxels_per_edge: int = 64) -> float:
+    """--voxel, or the box's longest edge / ``voxels_per_edge`` when unset."""
     import numpy as np
 
     if voxel_m is None:
-        return float(np.max(np.subtract(upper, lower))) / 64
+        return float(np.max(np.subtract(upper, lower))) / voxels_per_edge
     if not (voxel_m > 0 and voxel_m < float("inf")):
         raise ValueError(f"--voxel must be a positive, finite size [m], got {voxel_m}")
     return voxel_m
@@ -170,8 +170,6 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply.
 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA."""
-    import numpy as np
-
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -190,8 +188,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         grid = image.grid
     else:
         lower, upper = _image_box(data, measurements, bounds, None)
-        voxel = float(np.max(np.subtract(upper, lower))) / 50 if voxel_m is None else _voxel(voxel_m, lower, upper)
-        grid = Grid.from_voxel(lower, upper, voxel)
+        grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
     fit = Trainer(Problem(measurements, grid, str(data)), config, out, progress=True).fit(resume=resume)
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
