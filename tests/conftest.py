@@ -3,6 +3,9 @@ from pathlib import Path
 import pytest
 import torch
 
+from rfsdf.geometry import Grid
+from rfsdf.radar import Acquisition, Measurements, SensingOperator, matched_filter, write_image, write_measurements
+
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
@@ -17,3 +20,21 @@ def spot_path():
     if not path.is_file():
         pytest.skip(f"shared test mesh not found at {path}")
     return path
+
+
+@pytest.fixture
+def tiny_files(tmp_path):
+    """In tmp_path: data.h5 (a point target seen by 4 single-antenna views), image.h5 (its MF
+    image on a 10^3 grid) and tiny.toml (a seconds-long reconstruction config)."""
+    centres = torch.tensor([[0.5, 0, 0], [-0.5, 0, 0], [0, 0.5, 0], [0, -0.5, 0]], dtype=torch.float64)
+    acq = Acquisition(centres[:, None], centres[:, None], torch.linspace(77e9, 81e9, 8), -centres / 0.5)
+    y = SensingOperator(acq).forward(torch.tensor([[0.01, 0.0, 0.0]]), torch.ones(1, dtype=torch.complex64))
+    m = Measurements(acq, y)
+    write_measurements(tmp_path / "data.h5", m)
+    write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
+    (tmp_path / "tiny.toml").write_text(
+        '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nelement_step = 1\nrefresh_every = 3\n'
+        '[init]\nmethod = "mf"\nsteps = 20\nbatch = 256\n'
+        '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
+        '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
+    return tmp_path

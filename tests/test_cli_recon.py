@@ -5,28 +5,9 @@ import trimesh
 from click.testing import CliRunner
 
 from rfsdf.cli import main
-from rfsdf.geometry import Grid
-from rfsdf.radar import Acquisition, Measurements, matched_filter, write_image, write_measurements
 
 
-def _files(tmp_path):
-    """A point target seen by 4 single-antenna views, and its MF image on a 10^3 grid."""
-    centres = torch.tensor([[0.5, 0, 0], [-0.5, 0, 0], [0, 0.5, 0], [0, -0.5, 0]], dtype=torch.float64)
-    acq = Acquisition(centres[:, None], centres[:, None], torch.linspace(77e9, 81e9, 8), -centres / 0.5)
-    from rfsdf.radar import SensingOperator
-    y = SensingOperator(acq).forward(torch.tensor([[0.01, 0.0, 0.0]]), torch.ones(1, dtype=torch.complex64))
-    m = Measurements(acq, y)
-    write_measurements(tmp_path / "data.h5", m)
-    write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
-    (tmp_path / "tiny.toml").write_text(
-        '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nelement_step = 1\nrefresh_every = 3\n'
-        '[init]\nmethod = "mf"\nsteps = 20\nbatch = 256\n'
-        '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
-        '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
-
-
-def test_reconstruct_mesh_evaluate_and_resume(tmp_path):
-    _files(tmp_path)
+def test_reconstruct_mesh_evaluate_and_resume(tmp_path, tiny_files):
     runner = CliRunner()
     args = ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
             "--out", str(tmp_path / "run"), "--config", str(tmp_path / "tiny.toml")]
@@ -49,9 +30,8 @@ def test_reconstruct_mesh_evaluate_and_resume(tmp_path):
     assert metrics["chamfer_l1_mm"] > 0 and 0 <= metrics["fscore"] <= 1
 
 
-def test_reconstruct_and_image_need_no_scene(tmp_path):
+def test_reconstruct_and_image_need_no_scene(tmp_path, tiny_files):
     """Real data have no scene: the box comes from --bounds (or bounds stored in the file)."""
-    _files(tmp_path)
     runner = CliRunner()
     bounds = "-0.05,-0.05,-0.05,0.05,0.05,0.05"
     result = runner.invoke(main, ["image", str(tmp_path / "data.h5"), "--out", str(tmp_path / "i.h5"),
@@ -70,14 +50,13 @@ def test_reconstruct_and_image_need_no_scene(tmp_path):
         assert not (tmp_path / "k.h5").exists()
 
 
-def test_bad_inputs_get_one_line(tmp_path):
+def test_bad_inputs_get_one_line(tmp_path, tiny_files):
     runner = CliRunner()
     result = runner.invoke(main, ["mesh", str(tmp_path), "--out", str(tmp_path / "m.ply")])
     assert result.exit_code == 2 and "no checkpoint.pt" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["evaluate", str(tmp_path / "none.ply"), "--scene", "sphere"])
     assert result.exit_code == 2 and "file not found" in result.output
     (tmp_path / "bad.toml").write_text("[train]\nsteps = -3\n")
-    _files(tmp_path)
     result = runner.invoke(main, ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
                                   "--out", str(tmp_path / "r"), "--config", str(tmp_path / "bad.toml")])
     assert result.exit_code == 2 and "train.steps" in result.output
@@ -93,8 +72,7 @@ class _Payload:
         return (open, (self.path, "w"))
 
 
-def test_a_crafted_checkpoint_runs_no_code(tmp_path):
-    _files(tmp_path)
+def test_a_crafted_checkpoint_runs_no_code(tmp_path, tiny_files):
     run = tmp_path / "run"
     run.mkdir()
     marker = tmp_path / "pwned"

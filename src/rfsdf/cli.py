@@ -27,6 +27,18 @@ def _one_line_errors(func):
     return wrapper
 
 
+def _refuse_overwriting_inputs(out: Path, *inputs) -> None:
+    """ValueError when ``out`` is (or would replace) one of the command's input files."""
+    import os
+
+    for given in inputs:
+        if given is None or not Path(given).exists() or not out.exists():
+            continue
+        if os.path.samefile(out, given):
+            raise ValueError(f"{out}: --out is the input {given}; writing it would destroy the input, "
+                             "choose another output")
+
+
 @click.group()
 @click.version_option(package_name="rfsdf")
 def main():
@@ -49,8 +61,9 @@ def scene_show(name_or_file: str, out: Path | None):
     from .viz import plot_sdf_slices
 
     sc = load_scene(name_or_file)
-    click.echo(sc.summary())
     out = out or Path(f"{sc.name}-slices.png")
+    _refuse_overwriting_inputs(out, name_or_file)
+    click.echo(sc.summary())
     plot_sdf_slices(sc.sdf, sc.lower_m, sc.upper_m, out, title=f"scene {sc.name!r}: SDF slices")
     click.echo(f"wrote {out}")
 
@@ -91,6 +104,7 @@ def simulate_cmd(scene_name: str, radar_name: str, out: Path, seed: int):
     """Simulate radar measurements of a scene and write them to an HDF5 file."""
     from .radar import write_measurements
 
+    _refuse_overwriting_inputs(out, scene_name, radar_name)
     _, measurements = _simulate(scene_name, radar_name, seed)
     write_measurements(out, measurements)
     click.echo(f"wrote {out}")
@@ -137,6 +151,8 @@ def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, 
     """Matched-filter image of a measurements file, plus maximum-intensity projections (PNG)."""
     from .radar import read_measurements
 
+    _refuse_overwriting_inputs(out, data, scene_name)
+    _refuse_overwriting_inputs(out.with_suffix(".mip.png"), data, scene_name)
     measurements = read_measurements(data)
     lower, upper = _image_box(data, measurements, bounds, scene_name)
     _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"))
@@ -151,6 +167,7 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
     """Convert a real FMCW capture (layout in the README) into a measurements file."""
     from .radar import import_fmcw, write_measurements
 
+    _refuse_overwriting_inputs(out, capture)
     write_measurements(out, import_fmcw(capture, conjugate=conjugate))
     click.echo(f"wrote {out}")
 
@@ -176,6 +193,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     from .recon import Problem, Trainer, load_recon_config
     from .recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
 
+    _refuse_overwriting_inputs(out, data, image_path, config_path)
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
@@ -210,7 +228,9 @@ def mesh_cmd(run: Path, out: Path, resolution: int):
     """Mesh the SDF of a reconstruction run by marching cubes."""
     from .mesh import export_mesh, extract_mesh
     from .recon import load_field
+    from .recon.checkpoint import CHECKPOINT_NAME, CONFIG_NAME
 
+    _refuse_overwriting_inputs(out, run / CHECKPOINT_NAME, run / CONFIG_NAME)
     field = load_field(run)
     mesh = extract_mesh(field.sdf, field.lower_m, field.upper_m, resolution, progress=True)
     click.echo(f"wrote {export_mesh(mesh, out)} ({len(mesh.faces)} faces)")

@@ -2,18 +2,33 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import TypeVar
+from typing import Annotated, TypeVar
 
 import pydantic
 
 from .errors import RfsdfError
 
-__all__ = ["StrictModel", "read_toml", "validate", "load_model", "preset_names", "resolve_preset"]
+__all__ = ["Name", "StrictModel", "read_toml", "validate", "load_model", "preset_names", "resolve_preset"]
 
 Model = TypeVar("Model", bound=pydantic.BaseModel)
+
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+
+
+def _plain_name(text: str) -> str:
+    if not _NAME.fullmatch(text) or ".." in text:
+        raise ValueError(f"{text!r} is not a plain name (1-64 letters, digits, '_', '-', '.'; "
+                         "it names output files, so no '/' or '..')")
+    return text
+
+
+Name = Annotated[str, pydantic.AfterValidator(_plain_name)]
+"""A name that may become part of a file name: no path separators, no '..'."""
 
 
 class StrictModel(pydantic.BaseModel):

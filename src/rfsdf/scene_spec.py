@@ -12,7 +12,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import Field, PositiveFloat, field_validator, model_validator
 
-from .config import StrictModel
+from .config import Name, StrictModel
 from .materials import Material, get_material
 
 __all__ = ["SceneSpec", "ObjectSpec", "ShapeSpec", "MaterialSpec", "BoundsSpec", "TransformSpec"]
@@ -147,7 +147,7 @@ class ObjectSpec(StrictModel):
 
 
 class SceneSpec(StrictModel):
-    name: str
+    name: Name
     bounds: BoundsSpec
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = Field(min_length=1)

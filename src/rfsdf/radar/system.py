@@ -15,7 +15,7 @@ import numpy as np
 import torch
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
-from ..config import StrictModel, preset_names, read_toml, resolve_preset, validate
+from ..config import Name, StrictModel, preset_names, read_toml, resolve_preset, validate
 from ..errors import RfsdfError
 from . import arrays, waveform
 from .acquisition import SPEED_OF_LIGHT, Acquisition
@@ -113,7 +113,7 @@ class NoiseSpec(StrictModel):
 
 
 class RadarSpec(StrictModel):
-    name: str
+    name: Name
     waveform: WaveformSpec
     array: ArraySpec
     views: ViewsSpec
