@@ -1,12 +1,22 @@
 """Hostile input: one 'error:' line, exit code 2, and no file created or changed."""
 
+import copy
 import hashlib
 import os
+from importlib import resources
 
 import pytest
+import tomli_w
 from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from rfsdf.cli import main
+from rfsdf.config import read_toml
+from rfsdf.errors import RfsdfError
+from rfsdf.radar import load_radar
+from rfsdf.recon import ReconConfig, load_recon_config
+from rfsdf.scene import load_scene
 
 
 def _snapshot(folder) -> dict:
@@ -57,3 +67,99 @@ def test_an_output_that_is_an_input_is_refused(tmp_path, tiny_files, case):
             "reconstruct": ["reconstruct", data, "--out", tmp_path / "tiny.toml", "--config", tmp_path / "tiny.toml"],
             "mesh": ["mesh", run, "--out", run / "checkpoint.pt"]}[case]
     assert "would destroy the input" in _refused(args, tmp_path)
+
+
+# Property-based: any hostile value of any numeric setting --------------------------------
+HOSTILE_NUMBERS = st.one_of(
+    st.sampled_from([float("nan"), float("inf"), float("-inf"), 0.0, -1.0, 1e300, -1e300, 1e-300]),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.sampled_from(["text", "", [], {}, True, [1.0, 2.0]]),
+)
+
+
+def _numeric_leaves(table, path=()):
+    """Paths of every number (and number inside a list) in a parsed TOML table."""
+    if isinstance(table, dict):
+        for key, value in table.items():
+            yield from _numeric_leaves(value, (*path, key))
+    elif isinstance(table, list):
+        for index, value in enumerate(table):
+            yield from _numeric_leaves(value, (*path, index))
+    elif isinstance(table, (int, float)) and not isinstance(table, bool):
+        yield path
+
+
+def _replaced(table, path, value):
+    table = copy.deepcopy(table)
+    node = table
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return table
+
+
+def _loads_or_refuses(load, table, tmp_path):
+    """``load`` of ``table`` written as TOML either works or raises one RfsdfError naming the file."""
+    path = tmp_path / "case.toml"
+    try:
+        path.write_text(tomli_w.dumps(table))
+    except (TypeError, ValueError):  # not representable in TOML (e.g. NaN inside a list): nothing to test
+        return
+    try:
+        load(path)
+    except RfsdfError as exc:
+        assert str(exc).startswith(str(path)) and "\n" not in str(exc), exc
+
+
+def _preset_table(package, name):
+    return read_toml(resources.files(package) / f"{name}.toml")
+
+
+@pytest.mark.parametrize("package, name, load", [
+    ("rfsdf.presets.scenes", "objects", load_scene),
+    ("rfsdf.presets.radars", "near-77g", load_radar),
+])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_hostile_number_in_a_scene_or_radar_file_is_one_error(tmp_path, package, name, load, data):
+    table = _preset_table(package, name)
+    path = data.draw(st.sampled_from(sorted(_numeric_leaves(table), key=str)))
+    _loads_or_refuses(load, _replaced(table, path, data.draw(HOSTILE_NUMBERS)), tmp_path)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_hostile_number_in_a_reconstruction_config_is_one_error(tmp_path, data):
+    table = ReconConfig().model_dump(exclude_none=True)
+    path = data.draw(st.sampled_from(sorted(_numeric_leaves(table), key=str)))
+    _loads_or_refuses(load_recon_config, _replaced(table, path, data.draw(HOSTILE_NUMBERS)), tmp_path)
+
+
+_NUMERIC_OPTIONS = [  # command lines; OPTION takes the bad value, which every one of them must refuse
+    ["image", "data.h5", "--out", "i.h5", "--voxel", "OPTION"],
+    ["reconstruct", "data.h5", "--out", "run", "--voxel", "OPTION"],
+    ["evaluate", "m.ply", "--scene", "sphere", "--threshold", "OPTION"],
+    ["mesh", "run", "--out", "m.ply", "--resolution", "OPTION"],
+    ["simulate", "sphere", "--out", "s.h5", "--seed", "OPTION"],
+]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(args=st.sampled_from(_NUMERIC_OPTIONS),
+       value=st.one_of(st.sampled_from(["nan", "inf", "-inf", "0.0", "-1", "1e999", "abc", "", "0x10", "1e100000"]),
+                       st.floats(max_value=0).map(repr), st.integers(max_value=-1).map(str)))
+def test_a_bad_numeric_option_is_one_line_before_any_work(tmp_path, args, value):
+    _refused([value if a == "OPTION" else tmp_path / a if a.endswith((".h5", ".ply")) or a == "run" else a
+              for a in args], tmp_path)
+
+
+def test_every_command_refuses_an_object_outside_the_bounds(tmp_path):
+    """One validation serves all: scene show drew a blank picture of what simulate refused."""
+    (tmp_path / "far.toml").write_text(
+        'name = "far"\n[bounds]\nlower_m = [-0.1, -0.1, -0.1]\nupper_m = [0.1, 0.1, 0.1]\n'
+        '[[objects]]\nname = "ball"\nmaterial = "metal"\n'
+        'shape = { type = "sphere", radius_m = 0.02, transform = { translate_m = [5.0, 0.0, 0.0] } }\n')
+    for args in (["scene", "show", tmp_path / "far.toml", "--out", tmp_path / "far.png"],
+                 ["simulate", tmp_path / "far.toml", "--out", tmp_path / "far.h5"]):
+        assert "object 'ball' lies outside the bounds" in _refused(args, tmp_path)

@@ -39,7 +39,46 @@ def _refuse_overwriting_inputs(out: Path, *inputs) -> None:
                              "choose another output")
 
 
-@click.group()
+class _PositiveFinite(click.ParamType):
+    """A float > 0 that is finite (click's FloatRange lets nan and inf through)."""
+
+    name = "positive number"
+
+    def convert(self, value, param, ctx):
+        import math
+
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        if not (math.isfinite(number) and number > 0):
+            self.fail(f"{value!r} is not a positive, finite number", param, ctx)
+        return number
+
+
+POSITIVE = _PositiveFinite()
+SEED = click.IntRange(0, 2**32 - 1)
+
+
+class _OneLineGroup(click.Group):
+    """Click's own usage errors (bad option values, unknown options) as one 'error:' line
+    with exit code 2, the same promise the commands keep, instead of a usage block."""
+
+    def main(self, *args, standalone_mode: bool = True, **kwargs):
+        try:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        except click.exceptions.Abort:
+            click.echo("error: aborted", err=True)
+            sys.exit(1)
+        except click.exceptions.NoArgsIsHelpError as exc:  # a bare group name: its help, as click does
+            click.echo(exc.format_message(), err=True)
+            sys.exit(2)
+        except click.ClickException as exc:
+            click.echo(f"error: {exc.format_message()}", err=True)
+            sys.exit(2)
+
+
+@click.group(cls=_OneLineGroup)
 @click.version_option(package_name="rfsdf")
 def main():
     """rfsdf: neural SDF reconstruction from mmWave MIMO radar (GeRaF)."""
@@ -98,7 +137,7 @@ def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_
 @click.argument("scene_name")
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
-@click.option("--seed", default=0, show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Noise and sampling seed (0 to 2^32-1).")
 @_one_line_errors
 def simulate_cmd(scene_name: str, radar_name: str, out: Path, seed: int):
     """Simulate radar measurements of a scene and write them to an HDF5 file."""
@@ -130,11 +169,7 @@ def _voxel(voxel_m: float | None, lower, upper, voxels_per_edge: int = 64) -> fl
     """--voxel, or the box's longest edge / ``voxels_per_edge`` when unset."""
     import numpy as np
 
-    if voxel_m is None:
-        return float(np.max(np.subtract(upper, lower))) / voxels_per_edge
-    if not (voxel_m > 0 and voxel_m < float("inf")):
-        raise ValueError(f"--voxel must be a positive, finite size [m], got {voxel_m}")
-    return voxel_m
+    return float(np.max(np.subtract(upper, lower))) / voxels_per_edge if voxel_m is None else voxel_m
 
 
 _BOUNDS_HELP = "Box to image [m], XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the bounds stored in DATA, else --scene's)."
@@ -143,7 +178,7 @@ _BOUNDS_HELP = "Box to image [m], XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the bo
 @main.command("image")
 @click.argument("data", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Image file (.h5); MIPs go beside it.")
-@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] (default: box extent / 64).")
+@click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] (default: box extent / 64).")
 @click.option("--bounds", default=None, help=_BOUNDS_HELP)
 @click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image.")
 @_one_line_errors
@@ -178,7 +213,7 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--image", "image_path", type=click.Path(path_type=Path), default=None,
               help="A matched-filter image of DATA (from `rfsdf image`): the fit uses its grid.")
 @click.option("--bounds", default=None, help=_BOUNDS_HELP)
-@click.option("--voxel", "voxel_m", type=float, default=None, help="Voxel size [m] of the fit's images (default: extent / 50).")
+@click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] of the fit's images (default: extent / 50).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None, help="Reconstruction TOML.")
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint.")
 @_one_line_errors
@@ -222,7 +257,8 @@ def _run_config(run: Path) -> Path | None:
 @main.command("mesh")
 @click.argument("run", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Mesh file (.ply, .obj, .stl).")
-@click.option("--resolution", default=128, show_default=True, help="Voxels along the longest edge.")
+@click.option("--resolution", type=click.IntRange(2, 1024), default=128, show_default=True,
+              help="Voxels along the longest edge (2 to 1024).")
 @_one_line_errors
 def mesh_cmd(run: Path, out: Path, resolution: int):
     """Mesh the SDF of a reconstruction run by marching cubes."""
@@ -239,7 +275,7 @@ def mesh_cmd(run: Path, out: Path, resolution: int):
 @main.command("evaluate")
 @click.argument("mesh_path", type=click.Path(path_type=Path))
 @click.option("--scene", "scene_name", required=True, help="Ground-truth scene preset or TOML file.")
-@click.option("--threshold", "threshold_m", default=0.005, show_default=True, help="F-score distance [m].")
+@click.option("--threshold", "threshold_m", type=POSITIVE, default=0.005, show_default=True, help="F-score distance [m].")
 @click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
 @_one_line_errors
 def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: bool):

@@ -32,9 +32,10 @@ Name = Annotated[str, pydantic.AfterValidator(_plain_name)]
 
 
 class StrictModel(pydantic.BaseModel):
-    """Base of every config model: unknown keys are errors (they are usually typos)."""
+    """Base of every config model: unknown keys are errors (they are usually typos), and no
+    number may be NaN or infinite (no setting, size or position means anything there)."""
 
-    model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def read_toml(path) -> dict:

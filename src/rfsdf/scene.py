@@ -25,6 +25,7 @@ __all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_preset
 
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
 _COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
+_CHECK_RESOLUTION = 24  # grid on which every object must come near the bounds at load time
 _NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
 
 
@@ -126,6 +127,9 @@ class Scene:
             mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and obj.shape.transform is None else None
             self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh))
         self._meshes: list[trimesh.Trimesh] | None = None
+        for obj in self.objects:  # every command sees the same scene, so check here, once
+            if not self._near_points(obj, _CHECK_RESOLUTION).numel():
+                raise RfsdfError(f"scene {self.name!r}: object {obj.name!r} lies outside the bounds")
 
     # Fields -------------------------------------------------------------------------
     def sdf(self, points: torch.Tensor) -> torch.Tensor:
@@ -157,16 +161,22 @@ class Scene:
             self._meshes = [o.mesh if o.mesh is not None else self._mesh_of(o) for o in self.objects]
         return self._meshes
 
-    def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
-        coarse = geo.Grid.from_voxel(self.lower_m, self.upper_m, float(self.extent_m.max()) / _COARSE_RESOLUTION)
+    def _coarse_grid(self, resolution: int) -> geo.Grid:
+        return geo.Grid.from_voxel(self.lower_m, self.upper_m, float(self.extent_m.max()) / resolution)
+
+    def _near_points(self, obj: SceneObject, resolution: int) -> torch.Tensor:
+        """(M, 3) [m] points of a grid of the bounds (``resolution`` voxels along the longest
+        edge) inside the object or within a voxel diagonal of its surface: none when the
+        object lies outside the bounds, however small it is."""
+        coarse = self._coarse_grid(resolution)
         pts = coarse.points(dtype=torch.float64)
         with torch.no_grad():
-            near = obj.sdf(pts) < np.linalg.norm(coarse.voxel_m)
-        if not near.any():
-            raise RfsdfError(f"scene {self.name!r}: object {obj.name!r} lies outside the bounds")
-        pad = 2 * coarse.voxel_m
-        lower = np.maximum(pts[near].min(0).values.numpy() - pad, self.lower_m - pad)
-        upper = np.minimum(pts[near].max(0).values.numpy() + pad, self.upper_m + pad)
+            return pts[obj.sdf(pts) < np.linalg.norm(coarse.voxel_m)]
+
+    def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
+        near, pad = self._near_points(obj, _COARSE_RESOLUTION), 2 * self._coarse_grid(_COARSE_RESOLUTION).voxel_m
+        lower = np.maximum(near.min(0).values.numpy() - pad, self.lower_m - pad)
+        upper = np.minimum(near.max(0).values.numpy() + pad, self.upper_m + pad)
         sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface
         return extract_mesh(sdf64, lower, upper, _MESH_RESOLUTION)
 

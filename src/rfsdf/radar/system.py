@@ -9,30 +9,36 @@ ti_3tx4rx, optionally scanned as a synthetic aperture), ``[views]`` (turntable r
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import torch
-from pydantic import Field, PositiveFloat, PositiveInt, model_validator
+from pydantic import Field, PositiveFloat, model_validator
 
 from ..config import Name, StrictModel, preset_names, read_toml, resolve_preset, validate
 from ..errors import RfsdfError
+from ..limits import require_memory
 from . import arrays, waveform
 from .acquisition import SPEED_OF_LIGHT, Acquisition
 from .views import turntable_views
 
 __all__ = ["Radar", "RadarSpec", "load_radar", "radar_presets"]
 
+MAX_FREQUENCIES = 1 << 16  # per sweep
+MAX_ELEMENTS = 4096  # per edge, line, row or ring: beyond any real array, and it bounds the layout's memory
+ScanSteps = Annotated[int, Field(ge=1, le=1024)]
+_BYTES_PER_SAMPLE = 8  # complex64
+
 
 class WaveformSpec(StrictModel):
     kind: Literal["ofdm", "fmcw"]
     carrier_hz: PositiveFloat | None = None
     bandwidth_hz: PositiveFloat | None = None
-    subcarriers: PositiveInt | None = None
+    subcarriers: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)
     start_hz: PositiveFloat | None = None
     slope_hz_per_s: PositiveFloat | None = None
     sample_rate_hz: PositiveFloat | None = None
-    samples: PositiveInt | None = None
+    samples: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)
 
     @model_validator(mode="after")
     def _complete(self):
@@ -52,13 +58,13 @@ class WaveformSpec(StrictModel):
 class ArraySpec(StrictModel):
     kind: Literal["boundary", "uniform_linear", "uniform_planar", "ti_3tx4rx"]
     size_m: PositiveFloat | None = None  # boundary
-    elements_per_edge: PositiveInt | None = None  # boundary
-    tx_count: PositiveInt | None = None  # uniform_linear
-    rx_count: PositiveInt | None = None  # uniform_linear
-    nx: PositiveInt | None = None  # uniform_planar
-    ny: PositiveInt | None = None  # uniform_planar
+    elements_per_edge: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # boundary
+    tx_count: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # uniform_linear
+    rx_count: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # uniform_linear
+    nx: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # uniform_planar
+    ny: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # uniform_planar
     spacing_m: PositiveFloat | None = None  # uniform_linear, uniform_planar
-    scan_steps: tuple[PositiveInt, PositiveInt] = (1, 1)  # synthetic aperture grid (x, y)
+    scan_steps: tuple[ScanSteps, ScanSteps] = (1, 1)  # synthetic aperture grid (x, y)
     scan_step_m: PositiveFloat | None = None
 
     @model_validator(mode="after")
@@ -71,6 +77,14 @@ class ArraySpec(StrictModel):
         if missing:
             raise ValueError(f"{self.kind} array needs {', '.join(missing)}")
         return self
+
+    def element_counts(self) -> tuple[int, int]:
+        """(T, R) without laying the array out (to size it first)."""
+        tx, rx = {"boundary": lambda: (2 * self.elements_per_edge,) * 2,
+                  "uniform_linear": lambda: (self.tx_count, self.rx_count),
+                  "uniform_planar": lambda: (self.nx * self.ny,) * 2, "ti_3tx4rx": lambda: (3, 4)}[self.kind]()
+        scans = self.scan_steps[0] * self.scan_steps[1]
+        return tx * scans, rx * scans
 
     def elements(self, wavelength_m: float) -> tuple[np.ndarray, np.ndarray]:
         if self.kind == "boundary":
@@ -92,7 +106,7 @@ class ArraySpec(StrictModel):
 class ViewsSpec(StrictModel):
     kind: Literal["turntable"] = "turntable"
     distance_m: PositiveFloat
-    azimuths_per_ring: list[PositiveInt] = Field(min_length=1)
+    azimuths_per_ring: list[Annotated[int, Field(ge=1, le=MAX_ELEMENTS)]] = Field(min_length=1)
     elevations_rad: list[float] = Field(min_length=1)
     target_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
@@ -141,10 +155,12 @@ class Radar:
 
     @classmethod
     def from_spec(cls, spec: RadarSpec) -> Radar:
-        freqs = spec.waveform.frequencies()
+        freqs, v = spec.waveform.frequencies(), spec.views
+        views, (txs, rxs) = sum(v.azimuths_per_ring), spec.array.element_counts()
+        require_memory(_BYTES_PER_SAMPLE * views * txs * rxs * len(freqs),
+                       f"the measurements ({views} views x {txs} Tx x {rxs} Rx x {len(freqs)} frequencies)")
         # Arrays are laid out at the shortest wavelength so spacings hold across the band.
         tx, rx = spec.array.elements(SPEED_OF_LIGHT / float(np.max(freqs)))
-        v = spec.views
         rotations, positions = turntable_views(v.distance_m, v.azimuths_per_ring, v.elevations_rad, v.target_m)
         return cls(spec.name, tx, rx, freqs, rotations, positions, spec.antenna.pattern_exponent,
                    spec.antenna.spreading, spec.noise.snr_db)
