@@ -16,7 +16,7 @@ def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
     for name in ("measurements.h5", "image.h5", "scene-slices.png", "image-mip.png", "clean-mip.png", "neural.ply",
                  "neural-warm-start.ply",
                  "mf-threshold.ply", "clean-threshold.ply", "clean-detection.ply", "recon-slices.png", "training.png",
-                 "metrics.json", "run/checkpoint.pt", "run/log.csv"):
+                 "metrics.json", "run/checkpoint.pt", "run/log.csv", "demo-settings.json"):
         assert (out / name).exists(), name
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics["methods"]) == set(METHODS)
@@ -34,6 +34,12 @@ def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
     again = runner.invoke(main, ["demo", "--quick", "--out", str(out)])  # the finished fit is reused
     assert again.exit_code == 0, again.output
     assert (out / "run" / "log.csv").read_text().count("\n") == log_lines
+
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+    other = runner.invoke(main, ["demo", "--quick", "--scene", "sphere", "--out", str(out)])
+    assert other.exit_code == 2 and other.output.count("\n") == 1, other.output
+    assert "holds a demo of other settings (scene: 'objects' -> 'sphere')" in other.output
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == before  # nothing written
 
 
 def test_quick_demo_on_a_scene_file(tmp_path):

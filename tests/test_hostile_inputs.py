@@ -2,6 +2,7 @@
 
 import copy
 import hashlib
+import json
 import os
 from importlib import resources
 
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from rfsdf.cli import main
 from rfsdf.config import read_toml
 from rfsdf.errors import RfsdfError
+from rfsdf.jsonio import to_json
 from rfsdf.radar import load_radar
 from rfsdf.recon import ReconConfig, load_recon_config
 from rfsdf.scene import load_scene
@@ -163,3 +165,25 @@ def test_every_command_refuses_an_object_outside_the_bounds(tmp_path):
     for args in (["scene", "show", tmp_path / "far.toml", "--out", tmp_path / "far.png"],
                  ["simulate", tmp_path / "far.toml", "--out", tmp_path / "far.h5"]):
         assert "object 'ball' lies outside the bounds" in _refused(args, tmp_path)
+
+
+def test_json_output_is_strict_json():
+    text = to_json({"a": float("nan"), "b": [1.0, float("inf")], "c": {"d": -float("inf"), "e": 2}})
+    assert json.loads(text) == {"a": None, "b": [1.0, None], "c": {"d": None, "e": 2}}
+    assert "NaN" not in text and "Infinity" not in text
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder"])
+def test_a_non_regular_input_file_is_one_line_at_once(tmp_path, tiny_files, kind):
+    """A FIFO would block a reader forever and /dev/zero never end: refused before reading."""
+    special = {"fifo": tmp_path / "pipe.toml", "device": "/dev/zero", "folder": tmp_path / "folder.toml"}[kind]
+    if kind == "fifo":
+        os.mkfifo(special)
+    elif kind == "folder":
+        special.mkdir()
+    for args in (["scene", "show", special, "--out", tmp_path / "s.png"],
+                 ["image", special, "--out", tmp_path / "i.h5", "--bounds", "-0.05,-0.05,-0.05,0.05,0.05,0.05"],
+                 ["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--config", special],
+                 ["evaluate", special, "--scene", "sphere"]):
+        line = _refused(args, tmp_path)
+        assert str(special) in line and ("not a regular file" in line or "is a folder" in line), line

@@ -280,18 +280,16 @@ def mesh_cmd(run: Path, out: Path, resolution: int):
 @_one_line_errors
 def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: bool):
     """Compare a mesh with a scene's true surfaces: Chamfer, F-score, normals, Hausdorff, IoU."""
-    import json
-
     import trimesh
 
+    from .jsonio import to_json
+    from .limits import input_file
     from .metrics import evaluate_mesh
     from .scene import load_scene
 
-    if not mesh_path.exists():
-        raise ValueError(f"{mesh_path}: file not found")
-    metrics = evaluate_mesh(trimesh.load(mesh_path, force="mesh"), load_scene(scene_name), threshold_m=threshold_m)
+    metrics = evaluate_mesh(trimesh.load(input_file(mesh_path), force="mesh"), load_scene(scene_name), threshold_m=threshold_m)
     if as_json:
-        click.echo(json.dumps(metrics.as_dict(), indent=2))
+        click.echo(to_json(metrics.as_dict()))
     else:
         for key, value in metrics.as_dict().items():
             click.echo(f"{key:>20}  {value if value is None else f'{value:.4g}'}")

@@ -11,6 +11,7 @@ from typing import Annotated, TypeVar
 import pydantic
 
 from .errors import RfsdfError
+from .limits import input_file
 
 __all__ = ["Name", "StrictModel", "read_toml", "validate", "load_model", "preset_names", "resolve_preset"]
 
@@ -40,12 +41,12 @@ class StrictModel(pydantic.BaseModel):
 
 def read_toml(path) -> dict:
     """Parse a TOML file; RfsdfError naming the file and line on failure."""
-    path = Path(path)
+    path = input_file(path)
     try:
         with path.open("rb") as fh:
             return tomllib.load(fh)
-    except FileNotFoundError:
-        raise RfsdfError(f"{path}: file not found") from None
+    except UnicodeDecodeError:
+        raise RfsdfError(f"{path}: not a text (UTF-8) TOML file") from None
     except tomllib.TOMLDecodeError as exc:
         raise RfsdfError(f"{path}: invalid TOML: {exc}") from None
 

@@ -3,6 +3,7 @@ against the truth and against the baselines, and picture every stage.
 
 ``run_demo`` writes into one folder:
 
+    demo-settings.json                 the settings this folder holds a run of
     measurements.h5, image.h5          the data and its matched-filter image
     scene-slices.png, image-mip.png    the true SDF; MF power projections
     clean-mip.png                      CLEAN power projections (the warm start's image)
@@ -14,11 +15,13 @@ against the truth and against the baselines, and picture every stage.
                                        per object), the baselines' sweeps, stage timings
 
 A demo run folder is resumable: run again with the same settings and the fit continues
-from its last checkpoint (a finished fit is reused).
+from its last checkpoint (a finished fit is reused); other settings are refused before
+anything is written.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass, field
@@ -31,7 +34,9 @@ import torch
 
 from .atomic import atomic_path
 from .baseline import best_threshold_mesh, detection_mesh
+from .errors import RfsdfError
 from .geometry import Grid
+from .jsonio import to_json
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import check_radar_for_scene, load_radar, matched_filter, simulate, write_image, write_measurements
@@ -101,6 +106,28 @@ class DemoResult:
                 "methods": {name: m.as_dict() for name, m in self.methods.items()}, "timings_s": self.timings_s}
 
 
+SETTINGS_NAME = "demo-settings.json"
+
+
+def _claim(out: Path, settings: DemoSettings) -> None:
+    """Make ``out`` this demo's folder, or refuse before writing anything: a folder holding a
+    demo of other settings (or files of an unknown run) would end up mixing two runs."""
+    stamp, wanted = out / SETTINGS_NAME, json.loads(to_json(dataclasses.asdict(settings)))
+    if stamp.exists():
+        try:
+            held = json.loads(stamp.read_text())
+        except (OSError, ValueError):
+            held = None
+        if held != wanted:
+            changed = ", ".join(f"{k}: {held.get(k)!r} -> {v!r}" for k, v in wanted.items()
+                                if held.get(k) != v) if isinstance(held, dict) else "unreadable settings"
+            raise RfsdfError(f"{out}: holds a demo of other settings ({changed}); choose another --out")
+    elif any((out / name).exists() for name in ("measurements.h5", "image.h5", "run")):
+        raise RfsdfError(f"{out}: holds files of another run; choose another --out")
+    with atomic_path(stamp) as tmp:
+        tmp.write_text(to_json(wanted))
+
+
 def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str], None] = print,
              progress: bool = True) -> DemoResult:
     """Run the pipeline into folder ``out``; returns (and writes as metrics.json) the results."""
@@ -108,7 +135,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     scene, radar = load_scene(settings.scene), load_radar(settings.radar)
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
     config = ReconConfig.model_validate(settings.recon)
-    out.mkdir(parents=True, exist_ok=True)
+    _claim(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
@@ -182,7 +209,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
                         len(fit.log), round(fit.seconds_per_step, 3), methods,
                         {**timings, "total_s": round(sum(timings.values()), 2)})
     with atomic_path(out / "metrics.json") as tmp:
-        tmp.write_text(json.dumps(result.as_dict(), indent=2))
+        tmp.write_text(to_json(result.as_dict()))
     return result
 
 

@@ -1,4 +1,5 @@
-"""Sizes checked before allocating: one clear error instead of a MemoryError or a long wait.
+"""Inputs checked before use: sizes before allocating, files before reading; one clear error
+instead of a MemoryError, a hang or a long wait.
 
 Commands estimate the memory of their largest arrays from their inputs (measurement
 counts, voxels, mesh resolution, the shapes a file declares) and call ``require_memory``
@@ -8,10 +9,12 @@ before making them.
 from __future__ import annotations
 
 import os
+import stat
+from pathlib import Path
 
 from .errors import RfsdfError
 
-__all__ = ["available_memory_bytes", "require_memory"]
+__all__ = ["available_memory_bytes", "require_memory", "input_file"]
 
 GIB = 2**30
 
@@ -35,3 +38,16 @@ def require_memory(nbytes: float, what: str) -> None:
     if not nbytes <= available:
         raise RfsdfError(f"{what} need about {nbytes / GIB:.3g} GiB, more than the "
                          f"{available / GIB:.3g} GiB of memory available")
+
+
+def input_file(path) -> Path:
+    """``path`` as a Path when it is a regular file; else one RfsdfError, at once (a FIFO would
+    block and ``/dev/zero`` never end)."""
+    path = Path(path)
+    if not path.exists():
+        raise RfsdfError(f"{path}: file not found")
+    if path.is_dir():
+        raise RfsdfError(f"{path}: is a folder, not a file")
+    if not stat.S_ISREG(path.stat().st_mode):
+        raise RfsdfError(f"{path}: not a regular file (a FIFO, socket or device)")
+    return path

@@ -21,6 +21,7 @@ import torch
 
 from ..atomic import atomic_path
 from ..errors import RfsdfError
+from ..limits import input_file
 from ..geometry import Grid
 from .acquisition import Acquisition, Measurements
 from .imaging import Image
@@ -34,9 +35,7 @@ _MEASUREMENTS, _IMAGE = "rfsdf.measurements", "rfsdf.image"
 
 
 def _open_hdf5(path) -> h5py.File:
-    path = Path(path)
-    if not path.is_file():
-        raise RfsdfError(f"{path}: file not found")
+    path = input_file(path)
     try:
         return h5py.File(path, "r")
     except OSError:

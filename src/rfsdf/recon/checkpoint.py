@@ -15,6 +15,7 @@ import torch
 
 from ..atomic import atomic_path
 from ..errors import RfsdfError
+from ..limits import input_file
 from ..field import RadarField
 
 __all__ = ["CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME", "save_checkpoint", "read_checkpoint", "write_config",
@@ -40,6 +41,7 @@ def read_checkpoint(path, device) -> dict:
     and refuses everything else, so a crafted checkpoint cannot run code (a plain
     ``torch.load`` would execute whatever a pickle in the file asks for).
     """
+    path = input_file(path)
     try:
         state = torch.load(path, map_location=device, weights_only=True)
     except pickle.UnpicklingError:
