@@ -4,6 +4,7 @@ surfaces (full surface, observed surface, per object), with the time of each sta
 a fit step.
 
 Usage: python benchmarks/quality.py [--scene S] [--radar R] [--out benchmarks/results/quality-SCENE-RADAR.json]
+       [--recon '{"train": {"geometry_delay": 0}}']   (reconstruction settings over the defaults)
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ def main() -> None:
     parser.add_argument("--scene", default=DemoSettings.scene)
     parser.add_argument("--radar", default=DemoSettings.radar)
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--recon", type=json.loads, default={}, help="ReconConfig overrides (JSON tables).")
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/quality-{Path(args.scene).stem}-{Path(args.radar).stem}.json")
 
-    settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar)
+    settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar, recon=args.recon)
     with tempfile.TemporaryDirectory() as folder:
         result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)

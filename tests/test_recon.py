@@ -158,9 +158,11 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
     """From a 3 mm dilation to within lambda/4 of the truth. Not closer: with 6 views of a 4 cm
     array, the amplitude loss of the ball's radius ripples with period lambda/2 (the glint
     and the limb interfere; measured: local minima near 20, 21 and 22 mm of about the same
-    depth), so this radar cannot pin the radius to a fraction of a millimetre."""
+    depth), so this radar cannot pin the radius to a fraction of a millimetre. f moves from
+    the first step (one uniform ball: Gamma has no brightness to explain first)."""
     _, data = sphere_data
-    trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5), tmp_path / "run")
+    trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),
+                      tmp_path / "run")
     dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
     fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
                  eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
@@ -170,6 +172,25 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
     assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 4)
     first, last = (sum(r.data for r in rows) / 5 for rows in (fit.log[:5], fit.log[-5:]))
     assert len(fit.log) == 40 and last < first
+
+
+def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):
+    _, data = sphere_data
+    trainer = Trainer(Problem(data, _grid(10)), _config(steps=6, geometry_delay=0.5), tmp_path / "run")
+    start = {k: v.clone() for k, v in trainer.field.state_dict().items()}
+    seen = {}
+
+    def snapshot(step):
+        seen[step] = {k: v.clone() for k, v in trainer.field.state_dict().items()}
+
+    trainer.fit(on_step=snapshot)
+    geometry = [k for k in start if k.startswith("geometry.")]
+    reflectance = [k for k in start if k.startswith("reflectance.")]
+    assert geometry and reflectance
+    assert all(torch.equal(seen[3][k], start[k]) for k in geometry)  # steps 1-3: Gamma only
+    assert not all(torch.equal(seen[3][k], start[k]) for k in reflectance)
+    assert not all(torch.equal(seen[6][k], seen[3][k]) for k in geometry)  # then f moves
+    assert all(r.eikonal == 0 for r in trainer.log[:3]) and all(r.eikonal > 0 for r in trainer.log[3:])
 
 
 def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path):

@@ -114,12 +114,14 @@ class CoherentRenderer:
         c = scatter(points, normals, area_m2, reflection, self.tx_centres[view], self.rx_centres[view], **self.lobe)
         return self.operators[view].forward(points, c[None])
 
-    def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor) -> torch.Tensor:
-        """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,)."""
+    def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True) -> torch.Tensor:
+        """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
+        ``geometry=False``: differentiable in Gamma only (no graph through f)."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         cand = self.candidates
-        points = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
+        with torch.set_grad_enabled(torch.is_grad_enabled() and geometry):
+            points = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
         amplitude = field.reflectivity(cand.anchors)
         targets = self.voxels[voxel_index]
         images = []

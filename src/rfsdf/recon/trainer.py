@@ -218,14 +218,17 @@ class Trainer:
         self.renderer.refresh(self.field.sdf, values, self.generator)
 
     def loss_terms(self) -> dict[str, torch.Tensor]:
-        """Data and Eikonal losses for one step (draws from the generator)."""
+        """Data and Eikonal losses for one step (draws from the generator). While f is frozen
+        (the first ``train.geometry_delay_steps``) no graph is built through it: those steps
+        fit Gamma only and cost less."""
         cfg = self.config
         views = torch.randperm(self.renderer.num_views, generator=self.generator)[:cfg.sampling.views_per_step]
         views = views.sort().values.to(self.device)
         size = cfg.sampling.cell_voxels
         corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
         voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
-        predicted = self.renderer(self.field, views, voxels)
+        frozen = self.step < cfg.train.geometry_delay_steps
+        predicted = self.renderer(self.field, views, voxels, geometry=not frozen)
         observed = self.observed[views][:, voxels]
         if size > 1:
             predicted, observed = pooled_amplitude(predicted, len(corners)), pooled_amplitude(observed, len(corners))
@@ -234,7 +237,10 @@ class Trainer:
         eik_points = eikonal_points(grid.lower_m, grid.upper_m, self.renderer.candidates.anchors,
                                     cfg.sampling.eikonal_batch, cfg.sampling.eikonal_near,
                                     float(np.max(grid.voxel_m)), self.generator)
-        eikonal = eikonal_loss(self.field.sdf, eik_points.to(self.device))
+        if frozen:  # the Eikonal term moves only f: skip it (the points are still drawn, for the generator)
+            eikonal = torch.zeros((), device=self.device)
+        else:
+            eikonal = eikonal_loss(self.field.sdf, eik_points.to(self.device))
         return {"data": data, "eikonal": eikonal, "loss": data + cfg.loss.eikonal_weight * eikonal}
 
     def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> FitResult:
