@@ -22,7 +22,6 @@ Usage: python benchmarks/coherent_model.py [--out benchmarks/results/coherent_mo
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ import torch
 from demo_data import demo_data
 from scipy import ndimage
 
+from rfsdf.jsonio import to_json
 from rfsdf.radar import Measurements, SensingOperator, matched_filter
 from rfsdf.radar.simulate import view_reflectivities
 
@@ -102,8 +102,8 @@ def main() -> None:
             print(kind, amount, result[kind][f"{amount:g} mm"], flush=True)
     result["dilation_scan"] = {f"{amount:+.1f} mm": score(moves["dilation"](amount * 1e-3)) for amount in SCAN_MM}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(json.dumps(result, indent=2))
+    args.out.write_text(to_json(result))
+    print(to_json(result))
 
 
 if __name__ == "__main__":

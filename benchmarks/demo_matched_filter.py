@@ -11,7 +11,6 @@ Usage: python benchmarks/demo_matched_filter.py [--resolution 64] [--out benchma
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import resource
 import tempfile
@@ -21,6 +20,7 @@ from pathlib import Path
 import torch
 
 from rfsdf.geometry import Grid
+from rfsdf.jsonio import to_json
 from rfsdf.radar import load_radar, matched_filter, read_measurements, simulate, write_measurements
 from rfsdf.scene import load_scene
 
@@ -65,8 +65,8 @@ def main() -> None:
         "image_bytes_mib": (image.per_view.numel() * 8 + image.column_norms_sq.numel() * 4) / 2**20,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(json.dumps(result, indent=2))
+    args.out.write_text(to_json(result))
+    print(to_json(result))
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from pathlib import Path
 import torch
 from demo_data import demo_data
 
+from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_mesh
 from rfsdf.recon import Problem, ReconConfig, Trainer
@@ -50,8 +51,8 @@ def main() -> None:
     result = {"steps": config.train.steps, "recon_overrides": args.recon, "start_from_truth": start, "after_fit": end,
               "drift_chamfer_mm": end["chamfer_l1_mm"] - start["chamfer_l1_mm"]}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(json.dumps(result, indent=2))
+    args.out.write_text(to_json(result))
+    print(to_json(result))
 
 
 if __name__ == "__main__":

@@ -10,12 +10,12 @@ Usage: python benchmarks/object_contrast.py [--out benchmarks/results/object_con
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import torch
 from demo_data import demo_data
 
+from rfsdf.jsonio import to_json
 from rfsdf.radar.clean import clean_image
 
 NEAR_M, FAR_M = 0.012, 0.03
@@ -45,8 +45,8 @@ def main() -> None:
                                     for i, o in enumerate(data.scene.objects)},
                         "background": _summary(amplitude[distances.min(0).values > FAR_M])}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(json.dumps(result, indent=2))
+    args.out.write_text(to_json(result))
+    print(to_json(result))
 
 
 if __name__ == "__main__":

@@ -7,12 +7,12 @@ Usage: python benchmarks/operator_throughput.py [--points N] [--out benchmarks/r
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import torch
 
+from rfsdf.jsonio import to_json
 from rfsdf.radar import SensingOperator, load_radar
 from rfsdf.radar.dense import dense_row
 
@@ -55,8 +55,8 @@ def main() -> None:
         "forward_speedup_vs_naive": forward / naive, "adjoint_speedup_vs_naive": adjoint / naive,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(json.dumps(result, indent=2))
+    args.out.write_text(to_json(result))
+    print(to_json(result))
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 from rfsdf.demo import DemoSettings, metrics_table, run_demo
+from rfsdf.jsonio import to_json
 
 
 def main() -> None:
@@ -31,9 +32,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result.as_dict(), indent=2))
+    out.write_text(to_json(result.as_dict()))
     print(metrics_table(result))
-    print(json.dumps({"timings_s": result.timings_s, "seconds_per_step": result.seconds_per_step}))
+    print(to_json({"timings_s": result.timings_s, "seconds_per_step": result.seconds_per_step}, indent=None))
 
 
 if __name__ == "__main__":

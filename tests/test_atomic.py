@@ -6,6 +6,7 @@ import stat
 import pytest
 
 from rfsdf.atomic import atomic_path
+from rfsdf.errors import RfsdfError
 
 
 @pytest.fixture
@@ -34,3 +35,10 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path):
         raise RuntimeError("crash")
     assert (tmp_path / "kept.txt").read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.txt"]
+
+
+def test_an_unwritable_place_names_the_output_not_a_temporary_file(tmp_path):
+    (tmp_path / "a-file").write_text("x")
+    with pytest.raises(RfsdfError, match=r"a-file/out.json: cannot write here"), \
+            atomic_path(tmp_path / "a-file" / "out.json") as tmp:
+        tmp.write_text("{}")

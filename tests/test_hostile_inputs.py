@@ -6,8 +6,10 @@ import json
 import os
 from importlib import resources
 
+import h5py
 import pytest
 import tomli_w
+import torch
 from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -16,6 +18,7 @@ from rfsdf.cli import main
 from rfsdf.config import read_toml
 from rfsdf.errors import RfsdfError
 from rfsdf.jsonio import to_json
+from rfsdf.mesh import extract_mesh
 from rfsdf.radar import load_radar
 from rfsdf.recon import ReconConfig, load_recon_config
 from rfsdf.scene import load_scene
@@ -187,3 +190,45 @@ def test_a_non_regular_input_file_is_one_line_at_once(tmp_path, tiny_files, kind
                  ["evaluate", special, "--scene", "sphere"]):
         line = _refused(args, tmp_path)
         assert str(special) in line and ("not a regular file" in line or "is a folder" in line), line
+
+
+def test_sizes_are_checked_before_allocating(tmp_path, tiny_files):
+    """An image, a mesh or an HDF5 dataset that cannot fit is one line, not a MemoryError."""
+    bounds = "-0.05,-0.05,-0.05,0.05,0.05,0.05"
+    line = _refused(["image", tmp_path / "data.h5", "--out", tmp_path / "i.h5", "--bounds", bounds, "--voxel", "1e-5"],
+                    tmp_path)
+    assert "the image (4 views x (10000, 10000, 10000) voxels" in line and "GiB of memory available" in line
+    line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--bounds", bounds,
+                     "--voxel", "1e-5", "--config", tmp_path / "tiny.toml"], tmp_path)
+    assert "the fit's images" in line
+    with h5py.File(tmp_path / "huge.h5", "w") as fh:  # a small file that declares 2^60 samples
+        fh.attrs.update({"format": "rfsdf.measurements", "format_version": 1})
+        fh.create_dataset("tx_m", shape=(2**30, 2**30), dtype="f8")
+    before = (tmp_path / "huge.h5").stat().st_size
+    line = _refused(["image", tmp_path / "huge.h5", "--out", tmp_path / "i.h5", "--bounds", bounds], tmp_path)
+    assert "huge.h5: tx_m: its declared shape (1073741824, 1073741824)" in line and before < 10_000
+
+
+def test_marching_cubes_is_sized_first():
+    with pytest.raises(RfsdfError, match=r"marching cubes on \(100000, 100000, 100000\) voxels"):
+        extract_mesh(lambda p: p.norm(dim=1) - 0.5, (-1, -1, -1), (1, 1, 1), 100_000)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(kind=st.sampled_from(["measurements", "image", "checkpoint"]), cut=st.floats(0, 0.9), noise=st.binary(max_size=512))
+def test_random_and_truncated_files_are_one_line(tmp_path, tiny_files, kind, cut, noise):
+    """A real file cut anywhere (then junk, or nothing), or pure junk: one line, no traceback."""
+    run = tmp_path / "run"
+    run.mkdir(exist_ok=True)
+    if not (run / "checkpoint.pt").exists():
+        torch.save({"step": 0, "field": {"w": torch.zeros(3)}}, run / "checkpoint.pt")
+    source = {"measurements": tmp_path / "data.h5", "image": tmp_path / "image.h5", "checkpoint": run / "checkpoint.pt"}
+    good = source[kind].read_bytes()
+    bad = tmp_path / f"bad-{kind}"
+    bad.mkdir(exist_ok=True)
+    target = bad / ("checkpoint.pt" if kind == "checkpoint" else "file.h5")
+    target.write_bytes(good[: int(cut * len(good))] + noise)
+    args = {"measurements": ["image", target, "--out", tmp_path / "o.h5", "--bounds", "-0.05,-0.05,-0.05,0.05,0.05,0.05"],
+            "image": ["reconstruct", tmp_path / "data.h5", "--image", target, "--out", tmp_path / "r"],
+            "checkpoint": ["mesh", bad, "--out", tmp_path / "m.ply"]}[kind]
+    _refused(args, tmp_path)

@@ -7,6 +7,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from .errors import RfsdfError
+
 __all__ = ["atomic_path"]
 
 
@@ -26,8 +28,11 @@ def atomic_path(path):
     the private 0600 of a temporary file, so colleagues can read a shared run's results.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    except OSError as exc:  # name the output the user asked for, not a temporary file
+        raise RfsdfError(f"{path}: cannot write here ({exc.strerror or exc})") from None
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())
     try:

@@ -121,9 +121,11 @@ def _simulate(scene_name: str, radar_name: str, seed: int):
 def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path):
     from .geometry import Grid
     from .radar import matched_filter, write_image
+    from .radar.imaging import require_image_memory
     from .viz import plot_mip
 
     grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
+    require_image_memory(measurements.acquisition.shape[0], grid)
     click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm "
                f"({measurements.acquisition.num_measurements} measurements)")
     image = matched_filter(measurements, grid, progress=True)

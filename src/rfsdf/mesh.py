@@ -13,11 +13,13 @@ from tqdm.auto import tqdm
 
 from .atomic import atomic_path
 from .geometry.grid import Grid
+from .limits import require_memory
 
 __all__ = ["evaluate_on_grid", "extract_mesh", "export_mesh", "MESH_FORMATS"]
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 _CHUNK_POINTS = 1 << 18  # 262k points per SDF call: bounded memory at any resolution
+_MARCHING_BYTES_PER_VOXEL = 16  # float32 values plus scikit-image's working arrays (about 3x)
 
 
 def evaluate_on_grid(
@@ -45,6 +47,7 @@ def extract_mesh(
     """
     lower, upper = np.asarray(lower_m, float), np.asarray(upper_m, float)
     grid = Grid.from_voxel(lower, upper, float((upper - lower).max()) / int(resolution))
+    require_memory(_MARCHING_BYTES_PER_VOXEL * grid.size, f"marching cubes on {grid.shape} voxels (resolution {resolution})")
     values = evaluate_on_grid(sdf, grid, device=device, progress=progress)
     return mesh_from_volume(values, grid, level=level)
 

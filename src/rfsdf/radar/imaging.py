@@ -13,10 +13,19 @@ import numpy as np
 import torch
 
 from ..geometry import Grid
+from ..limits import require_memory
 from .acquisition import Acquisition, Measurements
 from .operator import SensingOperator
 
-__all__ = ["Image", "matched_filter", "point_spread", "half_power_width"]
+__all__ = ["Image", "require_image_memory", "matched_filter", "point_spread", "half_power_width"]
+
+_IMAGE_BYTES_PER_VOXEL = 8 + 4 + 8  # per view: complex64 image, float32 column norm, the division's temporary
+
+
+def require_image_memory(views: int, grid: Grid, what: str = "the image") -> None:
+    """RfsdfError before imaging when per-view images of ``grid`` cannot fit in memory."""
+    require_memory(_IMAGE_BYTES_PER_VOXEL * views * grid.size,
+                   f"{what} ({views} views x {grid.shape} voxels; a larger voxel or a smaller box needs less)")
 
 
 @dataclass(frozen=True)
@@ -44,6 +53,7 @@ class Image:
 
 def matched_filter(measurements: Measurements, grid: Grid, *, device=None, progress: bool = False) -> Image:
     """Back-project ``measurements`` onto the voxel centres of ``grid``."""
+    require_image_memory(measurements.acquisition.shape[0], grid)
     op = SensingOperator(measurements.acquisition)
     points = grid.points(device=device)
     with torch.no_grad():

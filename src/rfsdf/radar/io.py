@@ -21,7 +21,7 @@ import torch
 
 from ..atomic import atomic_path
 from ..errors import RfsdfError
-from ..limits import input_file
+from ..limits import input_file, require_memory
 from ..geometry import Grid
 from .acquisition import Acquisition, Measurements
 from .imaging import Image
@@ -55,10 +55,12 @@ def _open(path, kind: str) -> h5py.File:
 
 
 def _read(fh: h5py.File, name: str, path) -> np.ndarray:
-    if name not in fh:
+    if name not in fh or not isinstance(fh[name], h5py.Dataset):
         raise RfsdfError(f"{path}: {name}: dataset missing")
+    dataset = fh[name]
+    require_memory(dataset.size * dataset.dtype.itemsize, f"{path}: {name}: its declared shape {dataset.shape}")
     try:
-        return fh[name][()]
+        return dataset[()]
     except OSError:
         raise RfsdfError(f"{path}: {name}: cannot be read (truncated file?)") from None
 

@@ -36,6 +36,7 @@ from tqdm.auto import tqdm
 
 from ..geometry import Grid, interpolated_sdf
 from ..radar import Measurements, SensingOperator
+from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, scatter
 from ..registry import Registry
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
@@ -72,6 +73,7 @@ class CoherentRenderer:
         self.operators = [SensingOperator(acq.view(v)) for v in range(acq.shape[0])]
         self.tx_centres = acq.tx_m.mean(1).to(self.device, dtype)  # (V, 3)
         self.rx_centres = acq.rx_m.mean(1).to(self.device, dtype)
+        require_image_memory(acq.shape[0], grid, "the fit's images")
         self.voxels = grid.points(device=self.device, dtype=dtype)  # (N, 3)
         self.column_norms_sq = torch.stack([op.column_norms_sq(self.voxels) for op in self.operators])  # (V, N)
         observed = torch.stack([
