@@ -25,7 +25,7 @@ round-trip wavenumber 2k), e^-197 at 79 GHz and sigma = 6 mm; summed incoherentl
 say where a smooth surface glints, and started at the true surface that fit drifted from
 1.2 to 9.1 mm Chamfer. Coherent prediction from points on the surface tolerates *smooth*
 geometric error well (``benchmarks/coherent_model.py``: a 2 mm dilation of the true scene
-still correlates 0.92 with the data, white per-sample jitter of lambda/4 only 0.67).
+still correlates 0.92 with the data, white per-sample jitter of lambda/4 only 0.69).
 """
 
 from __future__ import annotations
