@@ -10,13 +10,12 @@ containment queries give the same answers and serve as the reference in the test
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import torch
 import trimesh
 from scipy.spatial import cKDTree
 
+from ..limits import input_file
 from .base import SDF
 
 __all__ = ["MeshSDF", "load_watertight_mesh"]
@@ -35,9 +34,7 @@ def load_watertight_mesh(path_or_mesh) -> trimesh.Trimesh:
     if isinstance(path_or_mesh, trimesh.Trimesh):
         mesh, name = path_or_mesh.copy(), "mesh"
     else:
-        path = Path(path_or_mesh)
-        if not path.is_file():
-            raise ValueError(f"{path}: mesh file not found")
+        path = input_file(path_or_mesh)
         try:
             mesh = trimesh.load(path, force="mesh", process=False)
         except Exception as exc:  # trimesh raises many types on bad files

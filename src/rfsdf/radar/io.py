@@ -21,8 +21,8 @@ import torch
 
 from ..atomic import atomic_path
 from ..errors import RfsdfError
-from ..limits import input_file, require_memory
 from ..geometry import Grid
+from ..limits import input_file, require_memory
 from .acquisition import Acquisition, Measurements
 from .imaging import Image
 from .waveform import fmcw_frequencies

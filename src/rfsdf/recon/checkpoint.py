@@ -15,8 +15,8 @@ import torch
 
 from ..atomic import atomic_path
 from ..errors import RfsdfError
-from ..limits import input_file
 from ..field import RadarField
+from ..limits import input_file
 
 __all__ = ["CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME", "save_checkpoint", "read_checkpoint", "write_config",
            "write_log", "load_field"]
