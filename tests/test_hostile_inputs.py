@@ -232,3 +232,15 @@ def test_random_and_truncated_files_are_one_line(tmp_path, tiny_files, kind, cut
             "image": ["reconstruct", tmp_path / "data.h5", "--image", target, "--out", tmp_path / "r"],
             "checkpoint": ["mesh", bad, "--out", tmp_path / "m.ply"]}[kind]
     _refused(args, tmp_path)
+
+
+def test_a_material_outside_the_radar_band_is_refused_before_any_work(tmp_path):
+    """ITU-R brick has no model above 40 GHz: one line before anything is simulated or written."""
+    (tmp_path / "brick.toml").write_text(
+        'name = "bricks"\n[bounds]\nlower_m = [-0.1, -0.1, -0.1]\nupper_m = [0.1, 0.1, 0.1]\n'
+        '[[objects]]\nname = "wall"\nmaterial = "brick"\nshape = { type = "box", half_extents_m = [0.03, 0.03, 0.01] }\n')
+    for args in (["demo", "--quick", "--scene", tmp_path / "brick.toml", "--out", tmp_path / "d"],
+                 ["simulate", tmp_path / "brick.toml", "--out", tmp_path / "s.h5"]):
+        line = _refused(args, tmp_path)
+        assert "brick.toml: object 'wall': material 'brick'" in line and "range 1.0-40.0 GHz" in line, line
+    assert not (tmp_path / "d").exists()

@@ -108,11 +108,12 @@ def scene_show(name_or_file: str, out: Path | None):
 
 
 def _simulate(scene_name: str, radar_name: str, seed: int):
-    from .radar import check_radar_for_scene, load_radar, simulate
+    from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from .scene import load_scene
 
     sc, rad = load_scene(scene_name), load_radar(radar_name)
     check_radar_for_scene(rad, sc.lower_m, sc.upper_m, source=radar_name)
+    check_materials_in_band(sc, rad, source=scene_name)
     click.echo(sc.summary())
     click.echo(rad.summary())
     return sc, simulate(sc, rad, seed=seed, progress=True)

@@ -39,7 +39,10 @@ from .geometry import Grid
 from .jsonio import to_json
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
-from .radar import check_radar_for_scene, load_radar, matched_filter, simulate, write_image, write_measurements
+from .radar import (
+    check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, simulate, write_image,
+    write_measurements,
+)
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
 from .recon import Problem, ReconConfig, Trainer
@@ -134,6 +137,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     out = Path(out)
     scene, radar = load_scene(settings.scene), load_radar(settings.radar)
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
+    check_materials_in_band(scene, radar, source=settings.scene)
     config = ReconConfig.model_validate(settings.recon)
     _claim(out, settings)
     timings: dict[str, float] = {}

@@ -15,7 +15,7 @@ from .acquisition import SPEED_OF_LIGHT
 from .system import Radar
 from .waveform import unambiguous_range_m
 
-__all__ = ["check_radar_for_scene", "max_virtual_spacing_m"]
+__all__ = ["check_radar_for_scene", "check_materials_in_band", "max_virtual_spacing_m"]
 
 
 def _corners(lower_m, upper_m) -> np.ndarray:
@@ -66,3 +66,15 @@ def check_radar_for_scene(radar: Radar, lower_m, upper_m, *, source: str = "rada
         raise RfsdfError(f"{source}: array: virtual element spacing {spacing * 1e3:.2f} mm puts grating lobes inside "
                          f"the scene (needs <= {limit * 1e3:.2f} mm here); use more elements, a smaller array or a "
                          f"larger views.distance_m")
+
+
+def check_materials_in_band(scene, radar: Radar, *, source: str = "scene") -> None:
+    """Raise RfsdfError when an object's material has no permittivity model over the radar's
+    band (e.g. ITU-R brick stops at 40 GHz), before any work rather than mid-simulation."""
+    band = (float(np.min(radar.frequencies_hz)), float(np.max(radar.frequencies_hz)))
+    for obj in scene.objects:
+        try:
+            for frequency_hz in band:
+                obj.material.permittivity(frequency_hz)
+        except ValueError as exc:
+            raise RfsdfError(f"{source}: object {obj.name!r}: {exc}") from None
