@@ -29,6 +29,8 @@ def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
     assert baseline["fraction"] in map(float, baseline["sweep_chamfer_mm"])
     assert metrics["fit_steps"] == 6 and metrics["seconds_per_step"] > 0
     assert "GeRaF (neural)" in result.output and "recall metal_ball" in result.output
+    log = result.stderr  # not a terminal, as in a batch job's log: no redraws, few lines
+    assert "\r" not in log and log.count("\n") < 200, log[:2000]
     log_lines = (out / "run" / "log.csv").read_text().count("\n")
 
     again = runner.invoke(main, ["demo", "--quick", "--out", str(out)])  # the finished fit is reused

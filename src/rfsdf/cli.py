@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from .errors import RfsdfError
+from .progress import set_quiet
 
 __all__ = ["main"]
 
@@ -80,8 +81,13 @@ class _OneLineGroup(click.Group):
 
 @click.group(cls=_OneLineGroup)
 @click.version_option(package_name="rfsdf")
-def main():
-    """rfsdf: neural SDF reconstruction from mmWave MIMO radar (GeRaF)."""
+@click.option("--quiet", is_flag=True, help="No progress bars (results and errors still print).")
+def main(quiet: bool):
+    """rfsdf: neural SDF reconstruction from mmWave MIMO radar (GeRaF).
+
+    Progress bars go to stderr; in a log (stderr not a terminal) they become a plain line
+    every 30 s of a long stage."""
+    set_quiet(quiet)
 
 
 @main.group()

@@ -9,11 +9,11 @@ import numpy as np
 import torch
 import trimesh
 from skimage import measure
-from tqdm.auto import tqdm
 
 from .atomic import atomic_path
 from .geometry.grid import Grid
 from .limits import require_memory
+from .progress import progress_bar
 
 __all__ = ["evaluate_on_grid", "extract_mesh", "export_mesh", "MESH_FORMATS"]
 
@@ -30,7 +30,7 @@ def evaluate_on_grid(
     out = np.empty(grid.size, dtype=np.float32)
     starts = range(0, grid.size, chunk)
     with torch.no_grad():
-        for start in tqdm(starts, desc="evaluate SDF", unit="chunk", disable=not progress, leave=False):
+        for start in progress_bar(starts, desc="evaluate SDF", enabled=progress):
             points = grid.points(device=device, start=start, stop=start + chunk)
             out[start : start + len(points)] = sdf(points).float().cpu().numpy()
     return out.reshape(grid.shape)

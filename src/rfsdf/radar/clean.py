@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from scipy import ndimage
-from tqdm.auto import tqdm
 
 from ..geometry import Grid
+from ..progress import progress_bar
 from .acquisition import Measurements
 from .operator import SensingOperator
 
@@ -111,7 +111,7 @@ def clean_image(measurements: Measurements, grid: Grid, *, progress: bool = Fals
     """CLEAN every view (options as :func:`clean_view`) and restore the incoherent power image."""
     views = measurements.acquisition.shape[0]
     indices, amplitudes, residuals, restored = [], [], [], []
-    for v in tqdm(range(views), desc="CLEAN", disable=not progress, leave=False):
+    for v in progress_bar(range(views), desc="CLEAN", enabled=progress):
         index, amplitude, residual = clean_view(measurements, v, grid, **options)
         indices.append(index)
         amplitudes.append(amplitude)

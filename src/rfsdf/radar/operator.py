@@ -24,9 +24,9 @@ from __future__ import annotations
 import math
 
 import torch
-from tqdm.auto import tqdm
 
 from ..geometry import as_points
+from ..progress import progress_bar
 from .acquisition import SPEED_OF_LIGHT, Acquisition
 
 __all__ = ["SensingOperator"]
@@ -175,7 +175,7 @@ class SensingOperator:
     def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False) -> torch.Tensor:
         """A c for per-view c (V, Q): (V, T, R, K)."""
         blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A c", disable=not progress, leave=False):
+        for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A c", enabled=progress):
             u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
             y = torch.matmul(u * c[views, None, None, pts], w.transpose(-1, -2))  # (v, K, T, R)
             blocks.setdefault(views.start, []).append(y)
@@ -187,7 +187,7 @@ class SensingOperator:
         """A^H y per view: (V, Q)."""
         y_kf = y.permute(0, 3, 1, 2)  # (V, K, T, R)
         blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in tqdm(list(self._chunks(points.shape[0])), desc="A^H y", disable=not progress, leave=False):
+        for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A^H y", enabled=progress):
             u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
             z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
             blocks.setdefault(views.start, []).append((u_conj * z).sum(dim=(1, 2)))  # (v, q)

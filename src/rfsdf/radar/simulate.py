@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from ..materials import fresnel
+from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
 from .acquisition import Acquisition, Measurements
 from .operator import SensingOperator
@@ -58,7 +58,7 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     return torch.stack([
         surface_reflectivity(scene, samples.points, samples.normals, samples.area_m2, samples.object_index,
                              acq.tx_m[v].mean(0), acq.rx_m[v].mean(0), acq.center_frequency_hz, **scattering)
-        for v in tqdm(range(acq.shape[0]), desc="scattering", disable=not progress, leave=False)
+        for v in progress_bar(range(acq.shape[0]), desc="scattering", enabled=progress)
     ])
 
 

@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from ..geometry import Grid, interpolated_sdf
+from ..progress import progress_bar
 from ..radar import Measurements, SensingOperator
 from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, scatter
@@ -78,7 +78,7 @@ class CoherentRenderer:
         self.column_norms_sq = torch.stack([op.column_norms_sq(self.voxels) for op in self.operators])  # (V, N)
         observed = torch.stack([
             self._normalise(v, op.adjoint(data.data[v:v + 1].to(self.device), self.voxels))
-            for v, op in enumerate(tqdm(self.operators, desc="observed images", disable=not progress, leave=False))
+            for v, op in enumerate(progress_bar(self.operators, desc="observed images", enabled=progress))
         ])
         self.observed = observed / observed.abs().max()  # (V, N) complex, peak amplitude 1
         self.candidates: SurfaceCandidates | None = None

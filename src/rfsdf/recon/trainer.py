@@ -22,11 +22,11 @@ from typing import Callable
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from ..errors import RfsdfError
 from ..field import RadarField, levels_for
 from ..geometry import Grid
+from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.clean import clean_image
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
@@ -256,7 +256,7 @@ class Trainer:
             self.warm_start()
             self.warm_state = {k: v.detach().clone() for k, v in self.field.state_dict().items()}
             self.save()  # a run killed from here on resumes after the warm start
-        bar = tqdm(total=tc.steps, initial=self.step, desc="fit", disable=not self.progress)
+        bar = progress_bar(total=tc.steps, initial=self.step, desc="fit", enabled=self.progress, leave=True)
         while self.step < tc.steps:
             clock = time.perf_counter()
             if self.renderer.candidates is None or self.step % self.config.render.refresh_every == 0:

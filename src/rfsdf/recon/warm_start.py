@@ -25,9 +25,9 @@ from typing import Callable
 import numpy as np
 import torch
 from scipy import ndimage
-from tqdm.auto import tqdm
 
 from ..geometry import Grid, interpolated_sdf
+from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask
 from .losses import eikonal_loss
 
@@ -71,7 +71,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     extent = torch.as_tensor(upper_m, dtype=torch.float32) - lower
     optimizer = torch.optim.Adam(field.parameters(), lr=lr)
     residual = float("nan")
-    for _ in tqdm(range(steps), desc="warm start", disable=not progress, leave=False):
+    for _ in progress_bar(range(steps), desc="warm start", enabled=progress):
         points = (lower + extent * torch.rand(batch, 3, generator=generator)).to(device)
         f, gamma = field.sdf_and_reflectivity(points)
         with torch.no_grad():
