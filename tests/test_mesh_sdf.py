@@ -1,4 +1,4 @@
-"""MeshSDF against an exhaustive reference (every triangle) and trimesh's containment."""
+"""MeshSDF against trimesh's independent closest-point and containment queries."""
 
 import numpy as np
 import pytest
@@ -6,29 +6,52 @@ import torch
 import trimesh
 
 from rfsdf import geometry as geo
-from rfsdf.geometry.mesh_sdf import _closest_on_triangles
+from rfsdf.geometry.mesh_sdf import _EAB, _ECA, _FACE, _VB, _features
 
-DIST_TOL = 1e-9  # float64 arithmetic, same formula: only rounding differs
-
-
-def _brute_force_distance(mesh, points):
-    tri = mesh.triangles
-    out = np.empty(len(points))
-    for i, p in enumerate(points):
-        q, _ = _closest_on_triangles(np.repeat(p[None], len(tri), 0), tri[:, 0], tri[:, 1], tri[:, 2])
-        out[i] = np.sqrt(((q - p) ** 2).sum(1)).min()
-    return out
+DIST_TOL = 1e-9  # float64 arithmetic on both sides: only rounding differs
 
 
-def test_closest_point_on_triangle_regions():
-    a, b, c = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
-    cases = {  # point -> expected closest point
-        (0.2, 0.2, 1.0): (0.2, 0.2, 0.0), (-1.0, -1.0, 0.0): (0.0, 0.0, 0.0), (2.0, -0.5, 0.0): (1.0, 0.0, 0.0),
-        (0.5, -1.0, 0.0): (0.5, 0.0, 0.0), (1.0, 1.0, 0.0): (0.5, 0.5, 0.0), (-1.0, 0.5, 3.0): (0.0, 0.5, 0.0),
-    }
-    for p, expected in cases.items():
-        q, _ = _closest_on_triangles(np.array([p]), a, b, c)
-        np.testing.assert_allclose(q[0], expected, atol=1e-12)
+def _brute_force_distance(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """Distance to every triangle (trimesh's closest point on a triangle), the least per point."""
+    triangles = np.tile(mesh.triangles, (len(points), 1, 1))
+    repeated = np.repeat(points, len(mesh.triangles), axis=0)
+    closest = trimesh.triangles.closest_point(triangles, repeated)
+    return np.linalg.norm(closest - repeated, axis=1).reshape(len(points), -1).min(1)
+
+
+def _check_against_trimesh(mesh: trimesh.Trimesh, points: np.ndarray) -> None:
+    values = geo.MeshSDF(mesh)(torch.as_tensor(points)).numpy()
+    np.testing.assert_allclose(np.abs(values), _brute_force_distance(mesh, points), atol=DIST_TOL)
+    np.testing.assert_array_equal(values < 0, mesh.contains(points))
+
+
+def _dented_box() -> trimesh.Trimesh:
+    """A box with a pit pushed into the middle of every face: concave vertices and edges,
+    where only the pseudo-normal of the right feature gives the right sign."""
+    mesh = trimesh.creation.box(extents=(1.0, 0.8, 0.6)).subdivide()
+    vertices = mesh.vertices.copy()
+    centres = np.isclose(np.abs(vertices), [0.5, 0.4, 0.3]).sum(1) == 1  # face centres only
+    vertices[centres] *= 0.6
+    return trimesh.Trimesh(vertices, mesh.faces)
+
+
+def test_closest_feature_from_barycentric_coordinates():
+    triangle = np.array([[[0.0, 0, 0], [1.0, 0, 0], [0.0, 1, 0]]])
+    for point, feature in (((0.2, 0.2, 0.0), _FACE), ((1.0, 0.0, 0.0), _VB), ((0.5, 0.0, 0.0), _EAB),
+                           ((0.0, 0.5, 0.0), _ECA)):
+        assert _features(triangle, np.array([point]))[0] == feature, point
+
+
+def test_mesh_sdf_matches_trimesh_on_a_dented_box():
+    mesh = _dented_box()
+    assert mesh.is_watertight and mesh.volume > 0
+    rng = np.random.default_rng(0)
+    surface, _ = trimesh.sample.sample_surface(mesh, 300, seed=1)
+    near_features = np.concatenate([mesh.vertices, mesh.vertices[mesh.edges_unique].mean(1)])
+    points = np.concatenate([surface + rng.normal(scale=0.02, size=surface.shape),
+                             near_features + rng.normal(scale=0.01, size=near_features.shape),
+                             rng.uniform(-1, 1, (100, 3))])
+    _check_against_trimesh(mesh, points)
 
 
 def test_mesh_sdf_of_icosphere_is_close_to_sphere():
@@ -38,15 +61,12 @@ def test_mesh_sdf_of_icosphere_is_close_to_sphere():
     torch.testing.assert_close(sdf(pts), torch.tensor([-0.5, 0.5, -0.3], dtype=torch.float64), atol=2e-3, rtol=0)
 
 
-def test_mesh_sdf_matches_references_on_spot(spot_path):
-    sdf = geo.MeshSDF(spot_path)
-    assert sdf.mesh.is_watertight
+def test_mesh_sdf_matches_trimesh_on_spot(spot_path):
+    mesh = geo.MeshSDF(spot_path).mesh
     rng = np.random.default_rng(0)
-    surface, _ = trimesh.sample.sample_surface(sdf.mesh, 150, seed=1)
-    pts = np.concatenate([surface + rng.normal(scale=0.01, size=surface.shape), rng.uniform(-1, 1, (50, 3))])
-    values = sdf(torch.as_tensor(pts)).numpy()
-    np.testing.assert_allclose(np.abs(values), _brute_force_distance(sdf.mesh, pts), atol=DIST_TOL)
-    np.testing.assert_array_equal(values < 0, sdf.mesh.contains(pts))
+    surface, _ = trimesh.sample.sample_surface(mesh, 150, seed=1)
+    _check_against_trimesh(mesh, np.concatenate([surface + rng.normal(scale=0.01, size=surface.shape),
+                                                 rng.uniform(-1, 1, (50, 3))]))
 
 
 def test_mesh_sdf_gradient_is_unit(spot_path):

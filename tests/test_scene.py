@@ -4,8 +4,10 @@ import math
 
 import pytest
 import torch
+import trimesh
 
 from rfsdf.errors import RfsdfError
+from rfsdf.geometry import MeshSDF
 from rfsdf.scene import load_scene, scene_presets
 
 
@@ -57,6 +59,39 @@ shape = {{ type = "mesh", path = "{spot_path}", size_m = 0.1, center_m = [0.0, 0
     assert scene.sdf(torch.zeros(1, 3)).item() < 0
     samples = scene.sample_surface(0.003)
     assert scene.sdf(samples.points.double()).abs().max().item() < 1e-6
+
+
+def test_scene_sdf_skips_a_far_mesh_without_changing_a_value(tmp_path, monkeypatch):
+    trimesh.creation.icosphere(subdivisions=3, radius=1.0).export(tmp_path / "ball.ply")
+    (tmp_path / "two.toml").write_text("""
+name = "two"
+[bounds]
+lower_m = [-0.1, -0.1, -0.1]
+upper_m = [0.1, 0.1, 0.1]
+[[objects]]
+name = "ball"
+material = "metal"
+shape = { type = "mesh", path = "ball.ply", size_m = 0.04, transform = { scale = 0.5, rotate_rad = 0.3, translate_m = [0.03, 0.0, 0.0] } }
+[[objects]]
+name = "box"
+material = "wood"
+shape = { type = "box", half_extents_m = [0.02, 0.02, 0.02], center_m = [-0.05, 0.0, 0.0] }
+""")
+    scene = load_scene(tmp_path / "two.toml")
+    queried = []
+    evaluate = MeshSDF._evaluate
+    monkeypatch.setattr(MeshSDF, "_evaluate", lambda self, p: queried.append(len(p)) or evaluate(self, p))
+    points = (torch.rand(4000, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0)) - 0.5) * 0.2
+    points.requires_grad_(True)
+    values = scene.sdf(points)
+    assert sum(queried) < 0.9 * len(points)  # the points nearer the box never reach the mesh
+    reference = scene._object_values(points.detach()).min(0).values  # every object everywhere
+    torch.testing.assert_close(values.detach(), reference, rtol=0, atol=1e-12)
+    (grad,) = torch.autograd.grad(values.sum(), points)
+    torch.testing.assert_close(grad.norm(dim=1), torch.ones(len(points), dtype=torch.float64), rtol=0, atol=1e-6)
+    centre, radius = scene.objects[0].sdf.bounding_sphere()  # the transforms carry it along
+    torch.testing.assert_close(centre, torch.tensor([0.03, 0.0, 0.0], dtype=torch.float64), rtol=0, atol=1e-9)
+    assert radius == pytest.approx(0.01, rel=1e-6)
 
 
 BAD_SCENES = {

@@ -133,8 +133,24 @@ class Scene:
 
     # Fields -------------------------------------------------------------------------
     def sdf(self, points: torch.Tensor) -> torch.Tensor:
-        """Scene SDF (N,) [m] at ``points`` (N, 3) [m]: min over objects, differentiable."""
-        return self._object_values(points).min(dim=0).values
+        """Scene SDF (N,) [m] at ``points`` (N, 3) [m]: min over objects, differentiable.
+
+        An object with a bounding sphere (a mesh) is evaluated only at the points where that
+        sphere is nearer than the other objects' surfaces: elsewhere it cannot be the least,
+        and shadow rays traced through a mesh scene would otherwise query it at every step."""
+        points = geo.as_points(points)
+        values = None
+        for obj in sorted(self.objects, key=lambda o: o.sdf.bounding_sphere() is not None):  # cheap first
+            sphere = obj.sdf.bounding_sphere()
+            if values is None or sphere is None:
+                v = obj.sdf(points)
+                values = v if values is None else torch.minimum(values, v)
+                continue
+            centre, radius = sphere
+            near = ((points - centre.to(points)).norm(dim=1) - radius < values).nonzero().squeeze(1)
+            if len(near):
+                values = values.index_put((near,), torch.minimum(values[near], obj.sdf(points[near])))
+        return values
 
     def object_index(self, points: torch.Tensor) -> torch.Tensor:
         """(N,) int64 index of the object nearest to (or containing) each point."""

@@ -55,6 +55,12 @@ class SDF:
     def _evaluate(self, points: torch.Tensor) -> torch.Tensor:
         raise NotImplementedError
 
+    def bounding_sphere(self) -> tuple[torch.Tensor, float] | None:
+        """Centre (3,) float64 [m] and radius [m] of a sphere holding the whole surface, given
+        by shapes that are costly to evaluate (meshes) so that callers can skip them far
+        away: f(p) >= |p - centre| - radius everywhere. None: not provided."""
+        return None
+
     # CSG operators -----------------------------------------------------------------
     def __or__(self, other: SDF) -> SDF:
         from .csg import union

@@ -1,29 +1,29 @@
 """Signed distance to a watertight triangle mesh, so any PLY/OBJ/STL can enter a scene.
 
-Magnitude: Ericson's closest point on a triangle, tested only against candidate
-triangles (a KD-tree on triangle centroids bounds the distance from the nearest few
-triangles; only triangles whose bounding sphere can beat that bound are tested).
-Sign: the angle-weighted pseudo-normal of the closest feature (face, edge or vertex;
-Baerentzen & Aanaes 2005), exact for a watertight mesh. trimesh's proximity and
-containment queries give the same answers and serve as the reference in the tests.
+Magnitude: libigl's AABB tree (the geometry-processing field's standard closest-point
+query, in C++): about 4 us a point on the 5856-face Spot mesh against 100 us for the
+earlier NumPy closest-point search, which made shadow rays through a mesh scene the
+simulator's whole cost. Sign: the angle-weighted pseudo-normal of the closest feature
+(face, edge or vertex; Baerentzen & Aanaes 2005), exact for a watertight mesh; the feature
+is read from the closest point's barycentric coordinates. trimesh's proximity and
+containment queries serve as the independent reference in the tests.
 """
 
 from __future__ import annotations
 
+import igl
 import numpy as np
 import torch
 import trimesh
-from scipy.spatial import cKDTree
 
 from ..limits import input_file
 from .base import SDF
 
 __all__ = ["MeshSDF", "load_watertight_mesh"]
 
-_SEED_TRIANGLES = 8  # nearest-centroid triangles used for the first distance bound
-_PAIRS_PER_CHUNK = 4_000_000  # candidate point-triangle pairs processed at once
 # Feature index per closest-point region: 0 face, 1..3 vertices a b c, 4 edge ab, 5 bc, 6 ca.
 _FACE, _VA, _VB, _VC, _EAB, _EBC, _ECA = range(7)
+_ON_FEATURE = 1e-9  # a barycentric coordinate below this puts the closest point on an edge or vertex
 
 
 def load_watertight_mesh(path_or_mesh) -> trimesh.Trimesh:
@@ -51,36 +51,17 @@ def load_watertight_mesh(path_or_mesh) -> trimesh.Trimesh:
     return mesh
 
 
-def _closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
-    """Closest points on triangles (a, b, c) to p, all (n, 3), and the feature index (n,).
-
-    Ericson, Real-Time Collision Detection, 5.1.5, vectorised; regions assigned in
-    reverse priority so that the later assignments win.
-    """
-    ab, ac = b - a, c - a
-    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
-    d1, d2 = dot(ab, p - a), dot(ac, p - a)
-    d3, d4 = dot(ab, p - b), dot(ac, p - b)
-    d5, d6 = dot(ab, p - c), dot(ac, p - c)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    tiny = np.finfo(p.dtype).tiny
-    with np.errstate(invalid="ignore", divide="ignore"):
-        denom = np.maximum(va + vb + vc, tiny)
-        out = a + ab * (vb / denom)[:, None] + ac * (vc / denom)[:, None]
-        feature = np.full(len(p), _FACE)
-        cases = [
-            ((va <= 0) & (d4 >= d3) & (d5 >= d6), _EBC,
-             lambda: b + (c - b) * ((d4 - d3) / np.maximum((d4 - d3) + (d5 - d6), tiny))[:, None]),
-            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), _ECA, lambda: a + ac * (d2 / np.maximum(d2 - d6, tiny))[:, None]),
-            ((d6 >= 0) & (d5 <= d6), _VC, lambda: c),
-            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), _EAB, lambda: a + ab * (d1 / np.maximum(d1 - d3, tiny))[:, None]),
-            ((d3 >= 0) & (d4 <= d3), _VB, lambda: b),
-            ((d1 <= 0) & (d2 <= 0), _VA, lambda: a),
-        ]
-        for mask, code, value in cases:
-            out = np.where(mask[:, None], value(), out)
-            feature[mask] = code
-    return out, feature
+def _features(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n,) feature index (``_FACE`` .. ``_ECA``) of points (n, 3) lying on triangles (n, 3, 3)."""
+    weights = trimesh.triangles.points_to_barycentric(triangles, points)  # (n, 3): a, b, c
+    on = weights > _ON_FEATURE
+    feature = np.full(len(points), _FACE)
+    feature[~on[:, 0] & on[:, 1] & on[:, 2]] = _EBC
+    feature[on[:, 0] & ~on[:, 1] & on[:, 2]] = _ECA
+    feature[on[:, 0] & on[:, 1] & ~on[:, 2]] = _EAB
+    for vertex, code in enumerate((_VA, _VB, _VC)):  # the one coordinate left is ~1
+        feature[(on.sum(1) <= 1) & (weights.argmax(1) == vertex)] = code
+    return feature
 
 
 def _pseudo_normals(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -104,40 +85,25 @@ class MeshSDF(SDF):
 
     def __init__(self, path_or_mesh):
         self.mesh = load_watertight_mesh(path_or_mesh)
-        self._triangles = np.asarray(self.mesh.triangles, dtype=np.float64)
-        centroids = self._triangles.mean(axis=1)
-        self._tree = cKDTree(centroids)
-        self._radius = float(np.linalg.norm(self._triangles - centroids[:, None], axis=2).max())
+        self._vertices = np.asarray(self.mesh.vertices, dtype=np.float64)
+        self._faces = np.asarray(self.mesh.faces, dtype=np.int64)
+        self._tree = igl.AABB()
+        self._tree.init(self._vertices, self._faces)
         self._normals = _pseudo_normals(self.mesh)
+        centre = self.mesh.bounds.mean(axis=0)
+        self._sphere = (torch.from_numpy(centre), float(np.linalg.norm(self._vertices - centre, axis=1).max()))
+
+    def bounding_sphere(self) -> tuple[torch.Tensor, float]:
+        return self._sphere
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Closest surface points (N, 3) [m] and the sign (N,) of ``points`` (N, 3) float64."""
-        tri = self._triangles
-        k = min(_SEED_TRIANGLES, len(tri))
-        _, seeds = self._tree.query(points, k=k)
-        seeds = seeds.reshape(len(points), k)
-        rows = np.repeat(np.arange(len(points)), k)
-        q, _ = _closest_on_triangles(np.repeat(points, k, 0), *(tri[seeds.ravel(), i] for i in range(3)))
-        bound = np.sqrt(((q - np.repeat(points, k, 0)) ** 2).sum(1).reshape(-1, k).min(1))
-        candidates = self._tree.query_ball_point(points, bound + self._radius, return_sorted=False)
-        best = np.full(len(points), np.inf)
-        closest = np.zeros_like(points)
-        feature_normal = np.zeros_like(points)
-        counts = np.fromiter((len(c) for c in candidates), dtype=np.int64, count=len(points))
-        start = 0
-        while start < len(points):
-            stop = start + max(1, int(np.searchsorted(np.cumsum(counts[start:]), _PAIRS_PER_CHUNK)))
-            faces = np.concatenate([np.asarray(c, dtype=np.int64) for c in candidates[start:stop]])
-            rows = np.repeat(np.arange(start, stop), counts[start:stop])
-            q, feat = _closest_on_triangles(points[rows], *(tri[faces, i] for i in range(3)))
-            dist = ((q - points[rows]) ** 2).sum(1)
-            order = np.lexsort((dist, rows))  # per row, the nearest pair first
-            first = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
-            r = rows[first]
-            best[r], closest[r] = dist[first], q[first]
-            feature_normal[r] = self._normals[faces[first], feat[first]]
-            start = stop
-        sign = np.where(np.einsum("ij,ij->i", points - closest, feature_normal) < 0, -1.0, 1.0)
+        if len(points) == 0:
+            return np.zeros((0, 3)), np.zeros(0)
+        _, face, closest = self._tree.squared_distance(self._vertices, self._faces, np.ascontiguousarray(points))
+        feature = _features(self._vertices[self._faces[face]], closest)
+        normal = self._normals[face, feature]
+        sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
         return closest, sign
 
     def _evaluate(self, points):

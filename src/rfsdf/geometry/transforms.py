@@ -32,6 +32,10 @@ class Translate(SDF):
     def _evaluate(self, points):
         return self.shape(points - _param(self.offset, points))
 
+    def bounding_sphere(self):
+        inner = self.shape.bounding_sphere()
+        return None if inner is None else (inner[0] + self.offset, inner[1])
+
 
 class Rotate(SDF):
     """``shape`` rotated by R about the origin: f(R^T p)."""
@@ -43,6 +47,10 @@ class Rotate(SDF):
     def _evaluate(self, points):
         # (R^T p) for row vectors is p @ R.
         return self.shape(points @ _param(self.matrix, points))
+
+    def bounding_sphere(self):
+        inner = self.shape.bounding_sphere()
+        return None if inner is None else (self.matrix @ inner[0], inner[1])
 
 
 class Scale(SDF):
@@ -57,3 +65,7 @@ class Scale(SDF):
 
     def _evaluate(self, points):
         return self.factor * self.shape(points / self.factor)
+
+    def bounding_sphere(self):
+        inner = self.shape.bounding_sphere()
+        return None if inner is None else (self.factor * inner[0], self.factor * inner[1])
