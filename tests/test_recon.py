@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from rfsdf.errors import RfsdfError
+from rfsdf.field import RadarField
 from rfsdf.geometry import Grid
 from rfsdf.materials import fresnel
 from rfsdf.radar import load_radar, simulate
@@ -172,6 +173,28 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
     assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 4)
     first, last = (sum(r.data for r in rows) / 5 for rows in (fit.log[:5], fit.log[-5:]))
     assert len(fit.log) == 40 and last < first
+
+
+def test_warm_start_points_near_the_surface_fit_a_small_object():
+    """A 12 mm ball in a 30 cm box gets a few of a uniform batch; a quarter of the batch
+    drawn within a voxel of its surface fits it several times better in the same steps."""
+    centre, radius = torch.tensor([0.07, 0.06, -0.04]), 0.012
+    target = lambda p: (p - centre.to(p)).norm(dim=1) - radius  # noqa: E731
+    grid = Grid((-0.15,) * 3, (0.15,) * 3, (50,) * 3)
+    points = grid.points()
+    near = points[target(points).abs() < 0.006]
+    surface = centre + radius * torch.nn.functional.normalize(
+        torch.randn(2000, 3, generator=torch.Generator().manual_seed(1)), dim=1)
+    error = {}
+    for share in (0.0, 0.25):
+        torch.manual_seed(0)
+        field = RadarField((-0.15,) * 3, (0.15,) * 3, levels=6, depth=4, width=64)
+        fit_to_image(field, grid.lower_m, grid.upper_m, target, None, steps=150, lr=1e-3, batch=2048,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=near,
+                     near_share=share, near_jitter_m=0.006)
+        with torch.no_grad():
+            error[share] = float(field.sdf(surface).abs().mean())
+    assert error[0.25] < 0.5 * error[0.0] and error[0.25] < 0.0025, error
 
 
 def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):

@@ -208,6 +208,7 @@ class Trainer:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
         warm_start(self.field, power, grid, threshold=ic.threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
+                   near_share=ic.near_share,
                    eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
