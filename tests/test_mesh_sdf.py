@@ -1,5 +1,7 @@
 """MeshSDF against trimesh's independent closest-point and containment queries."""
 
+import pickle
+
 import numpy as np
 import pytest
 import torch
@@ -82,3 +84,10 @@ def test_open_mesh_is_rejected(tmp_path):
     mesh.export(path)
     with pytest.raises(ValueError, match="open.ply.*not watertight"):
         geo.MeshSDF(path)
+
+
+def test_mesh_sdf_survives_pickling():
+    """Worker processes get scenes by pickle; the C++ tree is rebuilt on the other side."""
+    sdf = geo.MeshSDF(_dented_box())
+    points = torch.rand(100, 3, dtype=torch.float64) - 0.5
+    torch.testing.assert_close(pickle.loads(pickle.dumps(sdf))(points), sdf(points), rtol=0, atol=0)

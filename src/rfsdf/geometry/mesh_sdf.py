@@ -96,6 +96,14 @@ class MeshSDF(SDF):
     def bounding_sphere(self) -> tuple[torch.Tensor, float]:
         return self._sphere
 
+    def __getstate__(self) -> dict:  # the AABB tree is a C++ object: rebuilt, not pickled
+        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._tree = igl.AABB()
+        self._tree.init(self._vertices, self._faces)
+
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Closest surface points (N, 3) [m] and the sign (N,) of ``points`` (N, 3) float64."""
         if len(points) == 0:
