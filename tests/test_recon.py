@@ -216,6 +216,14 @@ def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):
     assert all(r.eikonal == 0 for r in trainer.log[:3]) and all(r.eikonal > 0 for r in trainer.log[3:])
 
 
+def test_a_fit_writes_no_progress_line_a_step_into_a_log(sphere_data, tmp_path, capsys):
+    """stderr is not a terminal here, as in a batch job: a short fit writes no bar at all
+    (a forced redraw per step once wrote a line per step into the demo's log)."""
+    _, data = sphere_data
+    Trainer(Problem(data, _grid(10)), _config(steps=6), tmp_path / "run", progress=True).fit()
+    assert capsys.readouterr().err.count("fit:") == 0
+
+
 def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path):
     _, data = sphere_data
     problem = Problem(data, _grid(10), "data.h5")

@@ -275,8 +275,9 @@ class Trainer:
             self.log.append(StepRecord(self.step, *(float(terms[k].detach()) for k in ("loss", "data", "eikonal")),
                                        self.scheduler.get_last_lr()[0], len(self.renderer.candidates),
                                        round(time.perf_counter() - clock, 3)))
+            # no forced redraw: update() draws, at most every 30 s into a log (rfsdf.progress)
+            bar.set_postfix(data=f"{self.log[-1].data:.3g}", eik=f"{self.log[-1].eikonal:.3g}", refresh=False)
             bar.update(1)
-            bar.set_postfix(data=f"{self.log[-1].data:.3g}", eik=f"{self.log[-1].eikonal:.3g}")
             if self.step % tc.checkpoint_every == 0 or self.step == tc.steps:
                 self.save()
             if on_step is not None:
