@@ -127,6 +127,9 @@ class Scene:
             mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and obj.shape.transform is None else None
             self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh))
         self._meshes: list[trimesh.Trimesh] | None = None
+        # (sdf, bounding sphere or None) per object, the unbounded (cheap) ones first, for sdf()
+        bounded = [(o.sdf, o.sdf.bounding_sphere()) for o in self.objects]
+        self._cheap_first = sorted(bounded, key=lambda pair: pair[1] is not None)
         for obj in self.objects:  # every command sees the same scene, so check here, once
             if not self._near_points(obj, _CHECK_RESOLUTION).numel():
                 raise RfsdfError(f"scene {self.name!r}: object {obj.name!r} lies outside the bounds")
@@ -140,16 +143,15 @@ class Scene:
         and shadow rays traced through a mesh scene would otherwise query it at every step."""
         points = geo.as_points(points)
         values = None
-        for obj in sorted(self.objects, key=lambda o: o.sdf.bounding_sphere() is not None):  # cheap first
-            sphere = obj.sdf.bounding_sphere()
+        for sdf, sphere in self._cheap_first:
             if values is None or sphere is None:
-                v = obj.sdf(points)
+                v = sdf(points)
                 values = v if values is None else torch.minimum(values, v)
                 continue
             centre, radius = sphere
             near = ((points - centre.to(points)).norm(dim=1) - radius < values).nonzero().squeeze(1)
             if len(near):
-                values = values.index_put((near,), torch.minimum(values[near], obj.sdf(points[near])))
+                values = values.index_put((near,), torch.minimum(values[near], sdf(points[near])))
         return values
 
     def object_index(self, points: torch.Tensor) -> torch.Tensor:
