@@ -6,6 +6,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
+BROWSER := $(VENV)/.browser
+
 .PHONY: setup demo test bench
 
 $(STAMP): pyproject.toml
@@ -16,19 +18,29 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install -q -e ".[test]"
 	touch $(STAMP)
 
+# Headless Chromium for the report's browser test, from Debian's packages (needs root or
+# sudo); where it cannot be installed the test skips and says why.
+$(BROWSER): $(STAMP)
+	command -v chromium >/dev/null 2>&1 || { SUDO=$$( [ "$$(id -u)" = 0 ] || echo "sudo -n" ); \
+	  $$SUDO apt-get install -y -q chromium >/dev/null 2>&1 || \
+	  { $$SUDO apt-get update -q >/dev/null 2>&1 && $$SUDO apt-get install -y -q chromium >/dev/null 2>&1; } || \
+	  echo "could not install chromium: the browser test will skip"; }
+	touch $(BROWSER)
+
 setup: $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/rfsdf demo
 
-test: $(STAMP)
+test: $(STAMP) $(BROWSER)
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/operator_throughput.py
 	$(BIN)/python benchmarks/demo_matched_filter.py
 	$(BIN)/python benchmarks/quality.py
-	$(BIN)/python benchmarks/quality.py --scene examples/scenes/untuned.toml
+	$(BIN)/python benchmarks/quality.py --scene tabletop
+	$(BIN)/python benchmarks/quality.py --scene benchmarks/scenes/workshop.toml
 	$(BIN)/python benchmarks/quality.py --radar dense-77g
 	$(BIN)/python benchmarks/model_bias.py
 	$(BIN)/python benchmarks/coherent_model.py

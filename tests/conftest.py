@@ -1,3 +1,4 @@
+import shutil
 from pathlib import Path
 
 import pytest
@@ -38,3 +39,21 @@ def tiny_files(tmp_path):
         '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
         '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
     return tmp_path
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """A headless Chromium driven by Playwright; skips, saying why, where none can start.
+
+    The set-up (`make test`) installs Debian's chromium. SwiftShader draws WebGL on the CPU."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (pip install -e '.[test]')")
+    executable = shutil.which("chromium") or shutil.which("chromium-browser")
+    if executable is None:
+        pytest.skip("no Chromium on this machine: the set-up installs it with `apt-get install chromium`, which "
+                    "needs root or sudo and Debian's package registry")
+    with sync_api.sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=executable, args=[
+            "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--disable-background-networking",
+            "--disable-component-update", "--no-first-run"])
+        yield chromium
+        chromium.close()

@@ -1,23 +1,36 @@
+import io
 import json
 import math
+import re
 
+import numpy as np
+import pytest
 from click.testing import CliRunner
+from matplotlib.image import imread
 
 from rfsdf.cli import main
 
 METHODS = ("neural", "neural_warm_start", "mf_threshold", "clean_threshold", "clean_detection")
 
 
-def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
+@pytest.fixture(scope="module")
+def quick_demo(tmp_path_factory):
+    """A quick demo's folder and the CLI result that made it (run once for this module)."""
+    out = tmp_path_factory.mktemp("quick") / "demo"
+    return out, CliRunner().invoke(main, ["demo", "--quick", "--out", str(out)])
+
+
+def test_quick_demo_runs_end_to_end_and_resumes(quick_demo):
     runner = CliRunner()
-    out = tmp_path / "demo"
-    result = runner.invoke(main, ["demo", "--quick", "--out", str(out)])
+    out, result = quick_demo
     assert result.exit_code == 0, result.output
     for name in ("measurements.h5", "image.h5", "scene-slices.png", "image-mip.png", "clean-mip.png", "neural.ply",
                  "neural-warm-start.ply",
                  "mf-threshold.ply", "clean-threshold.ply", "clean-detection.ply", "recon-slices.png", "training.png",
-                 "metrics.json", "run/checkpoint.pt", "run/log.csv", "demo-settings.json"):
+                 "metrics.json", "run/checkpoint.pt", "run/log.csv", "demo-settings.json", "report.html",
+                 "object-slices.png"):
         assert (out / name).exists(), name
+    assert f"report (open in a browser): {out / 'report.html'}" in result.output
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics["methods"]) == set(METHODS)
     for method in METHODS:
@@ -42,6 +55,39 @@ def test_quick_demo_runs_end_to_end_and_resumes(tmp_path):
     assert other.exit_code == 2 and other.output.count("\n") == 1, other.output
     assert "holds a demo of other settings (scene: 'objects' -> 'sphere')" in other.output
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == before  # nothing written
+
+
+def test_the_demo_report_holds_every_section_and_no_network_reference(quick_demo):
+    out, _ = quick_demo
+    page = (out / "report.html").read_text()
+    for key in ("summary", "images", "slices", "training", "metrics", "views3d"):
+        assert f'<section id="{key}">' in page, key
+    for name in ("metal_ball", "notched_block", "GeRaF (neural)", "CLEAN detection", "signed distance",
+                 "observed", "range resolution c/2B = 37.5 mm", "Tx", "Rx"):
+        assert name in page, name
+    assert page.count('class="plotly-graph-div"') == 4
+    assert re.search(r"<(script|link|img)[^>]*(src|href)=\"?https?:", page) is None  # all inline: no network
+
+
+def test_the_demo_report_draws_in_a_real_browser(quick_demo, browser, tmp_path):
+    """Headless Chromium opens the report without console errors, and the first 3-D view
+    draws a canvas whose pixels are not all background; the screenshots are kept."""
+    out, _ = quick_demo
+    page = browser.new_page(viewport={"width": 1300, "height": 900})
+    problems = []
+    page.on("console", lambda message: problems.append(message.text) if message.type == "error" else None)
+    page.on("pageerror", lambda error: problems.append(str(error)))
+    page.goto((out / "report.html").as_uri())
+    canvas = page.locator(".js-plotly-plot .gl-container canvas").first
+    canvas.wait_for(timeout=30_000)
+    page.wait_for_timeout(1500)  # let WebGL draw
+    pixels = imread(io.BytesIO(canvas.screenshot(path=str(tmp_path / "view3d.png"))))[..., :3]
+    page.screenshot(path=str(tmp_path / "report.png"), full_page=True)
+    colours, counts = np.unique((pixels * 255).astype(np.uint8).reshape(-1, 3), axis=0, return_counts=True)
+    background = colours[counts.argmax()].astype(float)
+    drawn = (np.abs(pixels * 255 - background).sum(-1) > 30).mean()
+    assert problems == []
+    assert drawn > 0.02, f"the 3-D view is blank ({drawn:.2%} of its pixels differ from the background)"
 
 
 def test_quick_demo_on_a_scene_file(tmp_path):

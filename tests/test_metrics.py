@@ -99,3 +99,6 @@ def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):
     result = evaluate_scene(truth, scene, observed=seen, samples=40_000)
     assert result.observed_fraction == pytest.approx((1 - math.cos(tolerance)) / 2, rel=0.1)
     assert result.observed.chamfer_l1_mm < 0.5 and result.observed.recall > 0.99
+    for ball in result.objects.values():  # each ball shows the radar the same cap
+        assert ball.observed_fraction == pytest.approx((1 - math.cos(tolerance)) / 2, rel=0.15)
+        assert ball.observed_recall > 0.99

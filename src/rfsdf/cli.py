@@ -321,6 +321,34 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool):
     from .demo import QUICK, DemoSettings, metrics_table, run_demo
 
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
+    from .report import write_report
+
     result = run_demo(out, settings, log=click.echo)
     click.echo(metrics_table(result))
     click.echo(f"total {result.timings_s['total_s']:.0f} s; every artefact and metrics.json are in {out}")
+    click.echo(f"report (open in a browser): {write_report(out)}")
+
+
+@main.command("report")
+@click.argument("folder", type=click.Path(path_type=Path))
+@_one_line_errors
+def report_cmd(folder: Path):
+    """Write FOLDER/report.html for a demo folder or a reconstruction run folder: scene, radar,
+    images, slices through each object, training curves, metrics, and 3-D views of the errors."""
+    from .report import write_report
+
+    click.echo(f"wrote {write_report(folder)}")
+
+
+@main.command("view")
+@click.argument("mesh_path", type=click.Path(path_type=Path))
+@click.option("--scene", "scene_name", default=None, help="Colour the mesh by its signed distance to this scene's surfaces.")
+@click.option("--out", type=click.Path(path_type=Path), default=None, help="HTML file (default: MESH with .html).")
+@_one_line_errors
+def view_cmd(mesh_path: Path, scene_name: str | None, out: Path | None):
+    """Write an interactive 3-D view of a mesh file (PLY, OBJ, STL) as a self-contained HTML page."""
+    from .report import write_view
+
+    out = out or mesh_path.with_suffix(".html")
+    _refuse_overwriting_inputs(out, mesh_path)
+    click.echo(f"wrote {write_view(mesh_path, out, scene_name=scene_name)}")

@@ -14,6 +14,8 @@ against the truth and against the baselines, and picture every stage.
     metrics.json                       metrics of every method (full, observed surface,
                                        per object), the baselines' sweeps, stage timings
 
+(`rfsdf demo` then writes ``report.html`` and ``object-slices.png`` with :mod:`rfsdf.report`.)
+
 A demo run folder is resumable: run again with the same settings and the fit continues
 from its last checkpoint (a finished fit is reused); other settings are refused before
 anything is written.
@@ -49,7 +51,8 @@ from .recon import Problem, ReconConfig, Trainer
 from .scene import load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "MethodResult", "DemoResult", "run_demo", "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows",
+           "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -168,7 +171,8 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
 
     rc = config.render
     clean_power = clean_image(measurements, grid, progress=progress).power.numpy()
-    plot_mip(clean_power, grid.lower_m, grid.upper_m, out / "clean-mip.png", title="CLEAN power (mean over views)")
+    plot_mip(clean_power, grid.lower_m, grid.upper_m, out / "clean-mip.png", title="CLEAN power (mean over views)",
+             quantity="CLEAN power")
     lap("clean_s")
 
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
@@ -206,7 +210,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
 
     plot_sdf_slices(fit.field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,
                     title="neural SDF (black) against the true surfaces (dashed)")
-    plot_training_curves(fit.log, out / "training.png", title=f"GeRaF fit ({rc.renderer} renderer)")
+    plot_training_curves([dataclasses.asdict(r) for r in fit.log], out / "training.png", title=f"GeRaF fit ({rc.renderer} renderer)")
     lap("figures_s")
 
     result = DemoResult(scene.name, radar.name, grid.shape, settings.voxel_m * 1e3, torch.get_num_threads(),
@@ -221,22 +225,33 @@ def _cell(value, fmt: str) -> str:
     return "-" if value is None or (isinstance(value, float) and not np.isfinite(value)) else format(value, fmt)
 
 
+_ROWS = (("Chamfer-L1 [mm]", "full", "chamfer_l1_mm", ".2f"), ("F-score @ 5 mm", "full", "fscore", ".3f"),
+         ("precision", "full", "precision", ".3f"), ("recall", "full", "recall", ".3f"),
+         ("normal consistency", "full", "normal_consistency", ".3f"),
+         ("Hausdorff-95 [mm]", "full", "hausdorff95_mm", ".1f"), ("volumetric IoU", "full", "iou", ".3f"),
+         ("observed Chamfer [mm]", "observed", "chamfer_l1_mm", ".2f"), ("observed F-score", "observed", "fscore", ".3f"))
+
+
+def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
+    """The method labels and the rows (metric name, one formatted cell per method) of a
+    result as written to metrics.json (``DemoResult.as_dict()``): full surface, observed
+    surface, then the recall of each object by name."""
+    methods = list(result["methods"].values())
+    rows = [(label, [_cell((m[part] or {}).get(key), fmt) for m in methods]) for label, part, key, fmt in _ROWS]
+    rows += [(f"recall {name}", [_cell(m["objects"][name]["recall"], ".2f") for m in methods])
+             for name in methods[0]["objects"]]
+    return [m["label"] for m in methods], rows
+
+
 def metrics_table(result: DemoResult) -> str:
     """Every method's metrics side by side (full surface, observed surface, per-object recall)."""
-    rows = [("Chamfer-L1 [mm]", lambda m: m.full.chamfer_l1_mm, ".2f"), ("F-score @ 5 mm", lambda m: m.full.fscore, ".3f"),
-            ("precision", lambda m: m.full.precision, ".3f"), ("recall", lambda m: m.full.recall, ".3f"),
-            ("normal consistency", lambda m: m.full.normal_consistency, ".3f"),
-            ("Hausdorff-95 [mm]", lambda m: m.full.hausdorff95_mm, ".1f"), ("volumetric IoU", lambda m: m.full.iou, ".3f"),
-            ("observed Chamfer [mm]", lambda m: m.observed and m.observed.chamfer_l1_mm, ".2f"),
-            ("observed F-score", lambda m: m.observed and m.observed.fscore, ".3f")]
-    names = list(next(iter(result.methods.values())).metrics.objects)
-    rows += [(f"recall {name}", lambda m, n=name: m.objects[n].recall, ".2f") for name in names]
-    methods = list(result.methods.values())
-    width = max(18, *(len(m.label) + 2 for m in methods))
-    lines = [f"{'':<24}" + "".join(f"{m.label:>{width}}" for m in methods)]
-    for label, get, fmt in rows:
-        lines.append(f"{label:<24}" + "".join(f"{_cell(get(m.metrics), fmt):>{width}}" for m in methods))
-    fraction = methods[0].metrics.observed_fraction
-    if fraction is not None:
-        lines.append(f"(observed surface: {fraction:.0%} of the true surface is seen near specular by some view)")
+    labels, rows = metrics_rows(result.as_dict())
+    width = max(18, *(len(label) + 2 for label in labels))
+    lines = [f"{'':<24}" + "".join(f"{label:>{width}}" for label in labels)]
+    lines += [f"{name:<24}" + "".join(f"{cell:>{width}}" for cell in cells) for name, cells in rows]
+    metrics = next(iter(result.methods.values())).metrics
+    if metrics.observed_fraction is not None:
+        lines.append(f"(observed surface: {metrics.observed_fraction:.0%} of the true surface is seen near specular "
+                     "by some view; by object: " + ", ".join(f"{name} {m.observed_fraction:.0%}"
+                                                             for name, m in metrics.objects.items()) + ")")
     return "\n".join(lines)

@@ -95,6 +95,8 @@ class ObjectMetrics:
     chamfer_l1_mm: float | None  # None when no predicted surface is nearest to this object
     precision: float
     recall: float
+    observed_fraction: float | None = None  # share of its true surface some view observes
+    observed_recall: float | None = None  # recall over that observed part (None if unseen)
 
     @property
     def found(self) -> bool:
@@ -157,7 +159,7 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
     d_ba, i_ba = cKDTree(pa).query(pb)
     cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
     full = with_scene_iou(_scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m), mesh, scene, seed=seed)
-    observed_metrics = observed_fraction = None
+    observed_metrics = observed_fraction = seen = None
     if observed is not None:
         seen = np.asarray(observed(torch.as_tensor(pb), torch.as_tensor(nb)), bool)
         observed_fraction = float(seen.mean())
@@ -170,5 +172,8 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
         objects[obj.name] = ObjectMetrics(
             chamfer_l1_mm=float(0.5 * (d_ab[mine].mean() + d_ba[own].mean()) * 1e3) if mine.any() else None,
             precision=float((d_ab[mine] < threshold_m).mean()) if mine.any() else 0.0,
-            recall=float((d_ba[own] < threshold_m).mean()))
+            recall=float((d_ba[own] < threshold_m).mean()),
+            observed_fraction=None if seen is None else float(seen[own].mean()),
+            observed_recall=float((d_ba[own & seen] < threshold_m).mean()) if seen is not None and seen[own].any()
+            else None)
     return SceneMetrics(full, observed_metrics, observed_fraction, objects)

@@ -19,7 +19,7 @@ from ..field import RadarField
 from ..limits import input_file
 
 __all__ = ["CHECKPOINT_NAME", "CONFIG_NAME", "LOG_NAME", "save_checkpoint", "read_checkpoint", "write_config",
-           "write_log", "load_field"]
+           "write_log", "read_log", "load_field"]
 
 CHECKPOINT_NAME = "checkpoint.pt"
 CONFIG_NAME = "config.toml"
@@ -72,6 +72,16 @@ def write_log(run_dir, rows: list[dict]) -> Path:
             writer.writeheader()
             writer.writerows(rows)
     return path
+
+
+def read_log(run_dir) -> list[dict[str, float]]:
+    """The rows of ``run_dir/log.csv`` as numbers (one dict per step); RfsdfError on a bad file."""
+    path = input_file(Path(run_dir) / LOG_NAME)
+    try:
+        with open(path, newline="") as fh:
+            return [{key: float(value) for key, value in row.items()} for row in csv.DictReader(fh)]
+    except (ValueError, TypeError, csv.Error) as exc:
+        raise RfsdfError(f"{path}: not a readable log ({exc})") from None
 
 
 def load_field(run_dir) -> RadarField:

@@ -11,8 +11,10 @@ from .figures import plt, save_figure
 __all__ = ["plot_mip"]
 
 
-def plot_mip(power: np.ndarray, lower_m, upper_m, path, *, title: str = "", dynamic_range_db: float = 30.0) -> Path:
-    """Save MIPs of ``power`` (nx, ny, nz) [linear] in dB relative to its maximum."""
+def plot_mip(power: np.ndarray, lower_m, upper_m, path, *, title: str = "", dynamic_range_db: float = 30.0,
+             quantity: str = "MF power") -> Path:
+    """Save MIPs of ``power`` (nx, ny, nz) [linear] in dB relative to its maximum; the colour
+    bar reads ``quantity`` [dB]."""
     power = np.asarray(power, float)
     db = 10 * np.log10(np.maximum(power / power.max(), 10 ** (-dynamic_range_db / 10)))
     lo, hi = np.asarray(lower_m), np.asarray(upper_m)
@@ -24,7 +26,7 @@ def plot_mip(power: np.ndarray, lower_m, upper_m, path, *, title: str = "", dyna
         ax.set_title(f"MIP along {'xyz'[axis]}")
         ax.set_xlabel(f"{'xyz'[u]} [m]")
         ax.set_ylabel(f"{'xyz'[v]} [m]")
-        fig.colorbar(im, ax=ax, shrink=0.8, label="MF power [dB]")
+        fig.colorbar(im, ax=ax, shrink=0.8, label=f"{quantity} [dB re max]")
     if title:
         fig.suptitle(title)
     return save_figure(fig, path)
