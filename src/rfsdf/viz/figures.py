@@ -14,10 +14,10 @@ from ..atomic import atomic_path  # noqa: E402
 __all__ = ["plt", "save_figure"]
 
 
-def save_figure(fig, path) -> Path:
+def save_figure(fig, path, *, dpi: int = 120) -> Path:
     """Save ``fig`` to ``path`` (format by extension) atomically and close it."""
     path = Path(path)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
     return path

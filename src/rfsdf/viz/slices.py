@@ -41,7 +41,7 @@ def _draw_slice(ax, sdf, reference, lower, upper, normal_axis: int, at: float, r
     if reference is not None:
         ref, _, _ = _slice_values(reference, lower, upper, normal_axis, at, resolution)
         ax.contour(ref, levels=[0.0], colors="lime", linewidths=1.0, linestyles="--", extent=extent, origin="lower")
-    ax.set_title(f"{title}{_AXES[normal_axis]} = {at * 1e3:.0f} mm")
+    ax.set_title(f"{title}{_AXES[normal_axis]} = {round(at * 1e3)} mm")  # round(): no "-0 mm"
     ax.set_xlabel(f"{_AXES[ua]} [m]")
     ax.set_ylabel(f"{_AXES[va]} [m]")
     return im
@@ -87,4 +87,4 @@ def plot_object_slices(
             fig.colorbar(im, ax=ax, shrink=0.8, label="SDF [mm]")
     if title:
         fig.suptitle(title)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi=80)  # a row per object: a tall figure, kept under 1 MB
