@@ -73,9 +73,12 @@ def test_per_object_metrics_name_the_missed_object(tmp_path):
     result = evaluate_scene(only_left, scene, samples=20_000)
     left, right = result.objects["left"], result.objects["right"]
     assert left.recall > 0.99 and left.precision > 0.99 and left.found and left.chamfer_l1_mm < 0.5
+    assert abs(left.bias_mm) < 0.1 and right.bias_mm is None
     assert right.recall == 0.0 and not right.found and right.chamfer_l1_mm is None
     assert result.full.recall == pytest.approx(0.5, abs=0.02)  # half the true surface is missing
     assert result.as_dict()["objects"]["right"]["found"] is False
+    grown = extract_mesh(Sphere(0.023, (-0.05, 0.0, 0.0)), (-0.1,) * 3, (0.1,) * 3, 96)
+    assert evaluate_scene(grown, scene, samples=5_000).objects["left"].bias_mm == pytest.approx(3.0, abs=0.1)
 
 
 def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):

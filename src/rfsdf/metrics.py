@@ -97,6 +97,7 @@ class ObjectMetrics:
     recall: float
     observed_fraction: float | None = None  # share of its true surface some view observes
     observed_recall: float | None = None  # recall over that observed part (None if unseen)
+    bias_mm: float | None = None  # median signed distance of its predicted samples to it (+ bloated, - shrunk)
 
     @property
     def found(self) -> bool:
@@ -124,6 +125,12 @@ class SceneMetrics:
 def _cosines(normals: np.ndarray, nearest_normals: np.ndarray) -> np.ndarray:
     """|n . n'| of each sample's normal with its nearest neighbour's."""
     return np.abs((normals * nearest_normals).sum(1))
+
+
+def _median_signed_mm(sdf, points: np.ndarray) -> float:
+    """Median signed distance [mm] of points (N, 3) [m] to the zero set of ``sdf`` (+ outside)."""
+    with torch.no_grad():
+        return float(np.median(sdf(torch.as_tensor(points, dtype=torch.float64)).double().numpy()) * 1e3)
 
 
 def _scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m) -> MeshMetrics:
@@ -175,5 +182,6 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
             recall=float((d_ba[own] < threshold_m).mean()),
             observed_fraction=None if seen is None else float(seen[own].mean()),
             observed_recall=float((d_ba[own & seen] < threshold_m).mean()) if seen is not None and seen[own].any()
-            else None)
+            else None,
+            bias_mm=_median_signed_mm(obj.sdf, pa[mine]) if mine.any() else None)
     return SceneMetrics(full, observed_metrics, observed_fraction, objects)
