@@ -63,7 +63,7 @@ def test_the_demo_report_holds_every_section_and_no_network_reference(quick_demo
     for key in ("summary", "images", "slices", "training", "metrics", "views3d"):
         assert f'<section id="{key}">' in page, key
     for name in ("metal_ball", "notched_block", "GeRaF (neural)", "CLEAN detection", "signed distance",
-                 "observed", "range resolution c/2B = 37.5 mm", "Tx", "Rx"):
+                 "observed", "range resolution c/2B = 37.5 mm", "lambda R / 2D = 11.9 mm at R = 0.75 m", "Tx", "Rx"):
         assert name in page, name
     assert page.count('class="plotly-graph-div"') == 4
     assert re.search(r"<(script|link|img)[^>]*(src|href)=\"?https?:", page) is None  # all inline: no network

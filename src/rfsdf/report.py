@@ -121,14 +121,15 @@ def _load_mesh(path: Path) -> trimesh.Trimesh:
     return mesh
 
 
-def _resolution_text(acquisition) -> str:
-    """Range resolution c/2B and cross-range resolution lambda R / (2 D) of the first view."""
+def _resolution_text(acquisition, centre_m: np.ndarray) -> str:
+    """Range resolution c/2B and cross-range resolution lambda R / (2 D) of the first view,
+    R its distance to ``centre_m`` (3,) [m], D the largest extent of its virtual array."""
     f = acquisition.frequencies_hz.numpy()
     bandwidth = len(f) * np.ptp(f) / max(len(f) - 1, 1)
     tx, rx = acquisition.tx_m[0].numpy(), acquisition.rx_m[0].numpy()
     virtual = 0.5 * (tx[:, None] + rx[None]).reshape(-1, 3)
-    aperture = float(np.linalg.norm(np.ptp(virtual, axis=0)))
-    distance = float(np.linalg.norm(virtual.mean(0)))
+    aperture = float(np.ptp(virtual, axis=0).max())
+    distance = float(np.linalg.norm(virtual.mean(0) - centre_m))
     wavelength = SPEED_OF_LIGHT / float(f.mean())
     return (f"range resolution c/2B = {range_resolution_m(bandwidth) * 1e3:.1f} mm; cross-range resolution "
             f"lambda R / 2D = {wavelength * distance / (2 * aperture) * 1e3:.1f} mm at R = {distance:.2f} m "
@@ -180,7 +181,7 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     ]
     sections = [
         Section("summary", "Scene and radar",
-                _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition)}\n"
+                _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
                      f"settings: {json.dumps(settings)}")),
         Section("images", "Matched-filter and CLEAN images",
                 "".join(_png(folder / name, name) for name in ("image-mip.png", "clean-mip.png")
