@@ -1,0 +1,72 @@
+"""How much of a GeRaF score is the method and how much the luck of one fit: the default
+demo's data (simulated, imaged and CLEANed once), fitted with several seeds of the fit's
+own random draws (`[train] seed`: the warm start's points, the views, voxels and surface
+samples of each step). Per seed: the warm start's and the fit's full, observed-surface and
+per-object scores; then their mean, standard deviation, min and max.
+
+Usage: python benchmarks/seeds.py [--seeds 0,1,2] [--out benchmarks/results/seeds.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+from demo_data import demo_data
+
+from rfsdf.jsonio import to_json
+from rfsdf.mesh import extract_mesh
+from rfsdf.metrics import evaluate_scene
+from rfsdf.radar.clean import clean_image
+from rfsdf.radar.coverage import observed_mask
+from rfsdf.recon import Problem, ReconConfig, Trainer
+
+
+def _scores(metrics) -> dict[str, float]:
+    row = {"chamfer_l1_mm": metrics.full.chamfer_l1_mm, "fscore": metrics.full.fscore,
+           "precision": metrics.full.precision, "recall": metrics.full.recall,
+           "observed_chamfer_l1_mm": metrics.observed.chamfer_l1_mm, "observed_fscore": metrics.observed.fscore}
+    row.update({f"recall_{name}": m.recall for name, m in metrics.objects.items()})
+    row["objects_found"] = sum(m.found for m in metrics.objects.values())
+    return row
+
+
+def _spread(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:
+    return {key: {"mean": float(np.mean(v)), "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+                  "min": float(np.min(v)), "max": float(np.max(v))}
+            for key, v in ((key, [r[key] for r in rows]) for key in rows[0])}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--seeds", default="0,1,2", help="Comma-separated fit seeds.")
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/seeds.json"))
+    args = parser.parse_args()
+    seeds = [int(s) for s in args.seeds.split(",")]
+
+    data = demo_data()
+    demo, scene, grid = data.settings, data.scene, data.image.grid
+    clean_power = clean_image(data.measurements, grid).power.numpy()
+    score = partial(evaluate_scene, scene=scene, samples=demo.metric_samples, seed=demo.seed,
+                    observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
+    mesh = lambda field: extract_mesh(field.sdf, scene.lower_m, scene.upper_m, demo.mesh_resolution)  # noqa: E731
+    runs = []
+    for seed in seeds:
+        config = ReconConfig.model_validate({"train": {"seed": seed}})
+        with tempfile.TemporaryDirectory() as run:
+            fit = Trainer(Problem(data.measurements, grid, clean_power=clean_power), config, run).fit()
+        runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
+                     "neural": _scores(score(mesh(fit.field))), "seconds_per_step": fit.seconds_per_step})
+        print(to_json(runs[-1], indent=None), flush=True)
+    result = {"seeds": seeds, "runs": runs, "warm_start": _spread([r["warm_start"] for r in runs]),
+              "neural": _spread([r["neural"] for r in runs])}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(to_json(result))
+    print(to_json({k: result[k] for k in ("warm_start", "neural")}))
+
+
+if __name__ == "__main__":
+    main()
