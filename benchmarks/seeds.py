@@ -49,7 +49,7 @@ def main() -> None:
 
     data = demo_data()
     demo, scene, grid = data.settings, data.scene, data.image.grid
-    clean_power = clean_image(data.measurements, grid).power.numpy()
+    clean = clean_image(data.measurements, grid)
     score = partial(evaluate_scene, scene=scene, samples=demo.metric_samples, seed=demo.seed,
                     observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
     mesh = lambda field: extract_mesh(field.sdf, scene.lower_m, scene.upper_m, demo.mesh_resolution)  # noqa: E731
@@ -57,7 +57,7 @@ def main() -> None:
     for seed in seeds:
         config = ReconConfig.model_validate({"train": {"seed": seed}})
         with tempfile.TemporaryDirectory() as run:
-            fit = Trainer(Problem(data.measurements, grid, clean_power=clean_power), config, run).fit()
+            fit = Trainer(Problem(data.measurements, grid, clean=clean), config, run).fit()
         runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
                      "neural": _scores(score(mesh(fit.field))), "seconds_per_step": fit.seconds_per_step})
         print(to_json(runs[-1], indent=None), flush=True)

@@ -35,7 +35,7 @@ def tiny_files(tmp_path):
     write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
     (tmp_path / "tiny.toml").write_text(
         '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nelement_step = 1\nrefresh_every = 3\n'
-        '[init]\nmethod = "mf"\nsteps = 20\nbatch = 256\n'
+        '[init]\nmethod = "mf"\nthreshold = 0.06\nsteps = 20\nbatch = 256\n'
         '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
         '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
     return tmp_path

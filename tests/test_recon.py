@@ -269,3 +269,23 @@ def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(spher
 def test_unknown_names_are_refused_with_the_known_ones(table, key, name):
     with pytest.raises(Exception, match=f"unknown .*'{name}'; known: "):
         ReconConfig.model_validate({table: {key: name}})
+
+
+def test_detection_threshold_auto_is_the_clean_residual_floor_and_numbers_pass_through():
+    from rfsdf.config import validate
+    from rfsdf.recon.warm_start import detection_threshold
+
+    class Floor:
+        def residual_floor(self):
+            return 0.0627
+
+    assert ReconConfig.model_validate({"init": {"threshold": "auto"}}).init.threshold == "auto"
+    assert detection_threshold("auto", Floor()) == 0.0627
+    assert detection_threshold(ReconConfig.model_validate({"init": {"threshold": 0.12}}).init.threshold, None) == 0.12
+    with pytest.raises(ValueError, match="needs the CLEAN image"):
+        detection_threshold("auto", None)
+    for bad, message in (({"threshold": 1.5}, 'init.threshold: must be "auto" or a number between 0 and 1'),
+                         ({"threshold": "median"}, "init.threshold: must be"),
+                         ({"method": "mf", "threshold": "auto"}, 'init: threshold "auto" is the CLEAN residual floor')):
+        with pytest.raises(RfsdfError, match=message):
+            validate(ReconConfig, {"init": bad}, "recon.toml")

@@ -16,9 +16,9 @@ against the truth and against the baselines, and picture every stage.
 
 (`rfsdf demo` then writes ``report.html`` and ``object-slices.png`` with :mod:`rfsdf.report`.)
 
-A demo run folder is resumable: run again with the same settings and the fit continues
-from its last checkpoint (a finished fit is reused); other settings are refused before
-anything is written.
+A demo run folder is resumable: run again with the same settings and the simulated data
+are read back, the fit continues from its last checkpoint (a finished fit is reused);
+other settings are refused before anything is written.
 """
 
 from __future__ import annotations
@@ -42,12 +42,13 @@ from .jsonio import to_json
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
-    check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, simulate, write_image,
-    write_measurements,
+    check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
+    write_image, write_measurements,
 )
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
 from .recon import Problem, ReconConfig, Trainer
+from .recon.warm_start import detection_threshold
 from .scene import load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
@@ -156,9 +157,12 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     log(radar.summary())
     plot_sdf_slices(scene.sdf, scene.lower_m, scene.upper_m, out / "scene-slices.png",
                     title=f"scene {scene.name!r}: SDF slices")
-    measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                            progress=progress)
-    write_measurements(out / "measurements.h5", measurements)
+    if (out / "measurements.h5").exists():  # written atomically by a run of these settings (_claim)
+        measurements = read_measurements(out / "measurements.h5")
+    else:
+        measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
+                                progress=progress)
+        write_measurements(out / "measurements.h5", measurements)
     lap("simulate_s")
 
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
@@ -170,7 +174,10 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     lap("image_s")
 
     rc = config.render
-    clean_power = clean_image(measurements, grid, progress=progress).power.numpy()
+    clean = clean_image(measurements, grid, progress=progress)
+    clean_power = clean.power.numpy()
+    log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
+        f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
     plot_mip(clean_power, grid.lower_m, grid.upper_m, out / "clean-mip.png", title="CLEAN power (mean over views)",
              quantity="CLEAN power")
     lap("clean_s")
@@ -178,7 +185,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
         f"({config.init.steps} steps) + {config.train.steps} steps")
     problem = Problem(measurements, grid, str(out / "measurements.h5"),
-                      clean_power=clean_power if config.init.method == "clean" else None)
+                      clean=clean if config.init.method == "clean" else None)
     fit = Trainer(problem, config, out / "run", progress=progress).fit(resume=True)
     lap("fit_s")
 
@@ -201,11 +208,13 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
                                      {"fraction": best.fraction,
                                       "sweep_chamfer_mm": {str(k): v for k, v in best.sweep.items()}})
     ic = config.init
-    detected = detection_mesh(clean_power, grid, threshold=ic.threshold, local_threshold=ic.local_threshold,
+    threshold = detection_threshold(ic.threshold, clean)
+    detected = detection_mesh(clean_power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                               window_m=ic.window_m)
     export_mesh(detected, out / "clean-detection.ply")
     methods["clean_detection"] = MethodResult("CLEAN detection", score(detected),
-                                              {"threshold": ic.threshold, "local_threshold": ic.local_threshold})
+                                              {"threshold": threshold, "threshold_setting": ic.threshold,
+                                               "local_threshold": ic.local_threshold})
     lap("baselines_s")
 
     plot_sdf_slices(fit.field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, field_validator
+from pydantic import (
+    Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, field_validator, model_validator,
+)
 
 from ..config import StrictModel, load_model
 
@@ -29,7 +31,9 @@ class FieldConfig(StrictModel):
 class InitConfig(StrictModel):
     # mf: threshold the matched-filter image; clean: threshold its CLEAN image; sphere: SAL only
     method: Literal["mf", "clean", "sphere"] = "clean"
-    threshold: float = Field(0.06, gt=0, lt=1, description="inside needs amplitude >= threshold * peak ...")
+    # a fraction of the peak amplitude, or "auto": CLEAN's residual floor (CleanResult.residual_floor),
+    # derived from the data; 0.06 is near-77g's (README, "Detection thresholds from the data")
+    threshold: float | str = Field(0.06, description="inside needs amplitude >= threshold * peak ...")
     local_threshold: float = Field(0.5, ge=0, lt=1, description="... and >= local_threshold * local peak")
     window_m: PositiveFloat = 0.03  # edge of the local-peak window [m]
     closing_m: NonNegativeFloat = 0.012  # morphological closing of the detections, radius [m]
@@ -39,6 +43,21 @@ class InitConfig(StrictModel):
     # share of each batch drawn within a voxel of the target's zero set: with a uniform batch
     # the 2.5 cm metal ball got ~30 points a step and half its surface (README, Quality)
     near_share: float = Field(0.25, ge=0, le=1)
+
+    @field_validator("threshold", mode="before")
+    @classmethod
+    def _threshold(cls, value):
+        if value == "auto":
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1:
+            raise ValueError(f'must be "auto" or a number between 0 and 1, got {value!r}')
+        return float(value)
+
+    @model_validator(mode="after")
+    def _auto_needs_clean(self):
+        if self.method == "mf" and self.threshold == "auto":
+            raise ValueError('threshold "auto" is the CLEAN residual floor; with method = "mf" give a number')
+        return self
 
 
 class RenderConfig(StrictModel):

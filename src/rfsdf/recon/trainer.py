@@ -28,7 +28,7 @@ from ..field import RadarField, levels_for
 from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements
-from ..radar.clean import clean_image
+from ..radar.clean import CleanResult, clean_image
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
 from .losses import DATA_LOSSES, eikonal_loss
@@ -36,7 +36,7 @@ from .render import RENDERERS
 from .sampling import cell_voxels, data_voxel_probabilities, eikonal_points, pooled_amplitude, sample_data_voxels
 from .schedules import SCHEDULES
 from .surface import SurfaceCandidates
-from .warm_start import warm_start
+from .warm_start import detection_threshold, warm_start
 
 __all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "resolve_device"]
 
@@ -44,13 +44,13 @@ __all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "resolve_device"]
 @dataclass(frozen=True)
 class Problem:
     """What the fit sees: the measurements, the voxel grid of its images, where the data
-    came from (a file name, for messages), and optionally their CLEAN power image on the
-    grid (grid.shape), when the caller has it already (else the warm start computes it)."""
+    came from (a file name, for messages), and optionally their CLEAN of that grid, when
+    the caller has it already (else the warm start computes it)."""
 
     measurements: Measurements
     grid: Grid
     source: str = "measurements"
-    clean_power: np.ndarray | None = None
+    clean: CleanResult | None = None
 
     def digest(self) -> str:
         """SHA-256 of the samples, the acquisition geometry and the grid (hex, 16 digits)."""
@@ -200,13 +200,14 @@ class Trainer:
         if ic.method == "sphere" or ic.steps == 0:
             return
         grid = self.problem.grid
+        clean = None
         if ic.method == "clean":
-            power = self.problem.clean_power
-            if power is None:
-                power = clean_image(self.problem.measurements, grid, progress=self.progress).power.numpy()
+            clean = self.problem.clean or clean_image(self.problem.measurements, grid, progress=self.progress)
+            power = clean.power.numpy()
         else:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
-        warm_start(self.field, power, grid, threshold=ic.threshold, local_threshold=ic.local_threshold,
+        warm_start(self.field, power, grid, threshold=detection_threshold(ic.threshold, clean),
+                   local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share,
                    eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator, progress=self.progress)

@@ -33,9 +33,20 @@ from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask
 from .losses import eikonal_loss
 
-__all__ = ["mask_signed_distance", "local_peak_amplitude", "fit_to_image", "warm_start"]
+__all__ = ["detection_threshold", "mask_signed_distance", "local_peak_amplitude", "fit_to_image", "warm_start"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
+
+
+def detection_threshold(setting: float | str, clean=None) -> float:
+    """The global threshold [fraction of the peak amplitude] for a config value: a number as
+    given, "auto" as the residual floor of ``clean`` (a :class:`~rfsdf.radar.clean.CleanResult`:
+    what CLEAN left unexplained, so the threshold follows the radar and the scene)."""
+    if setting != "auto":
+        return float(setting)
+    if clean is None:
+        raise ValueError('threshold "auto" needs the CLEAN image (init method "clean")')
+    return clean.residual_floor()
 
 
 def mask_signed_distance(inside: np.ndarray, grid: Grid) -> np.ndarray:
