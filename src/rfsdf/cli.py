@@ -125,31 +125,56 @@ def _simulate(scene_name: str, radar_name: str, seed: int):
     return sc, simulate(sc, rad, seed=seed, progress=True)
 
 
-def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path):
+def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path, method: str):
     from .geometry import Grid
     from .radar import matched_filter, write_image
-    from .radar.imaging import require_image_memory
+    from .radar.imaging import imaging_method, require_image_memory
     from .viz import plot_mip
 
     grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
     require_image_memory(measurements.acquisition.shape[0], grid)
+    chosen = imaging_method(measurements.acquisition, method)
+    why = {"fast": "range-profile back-projection", "exact": "the sensing operator's adjoint"}[chosen]
     click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm "
-               f"({measurements.acquisition.num_measurements} measurements)")
-    image = matched_filter(measurements, grid, progress=True)
+               f"({measurements.acquisition.num_measurements} measurements): {chosen} ({why}"
+               f"{', chosen by --method auto' if method == 'auto' else ''})")
+    image = matched_filter(measurements, grid, method=chosen, progress=True)
     write_image(out_image, image)
     plot_mip(image.power().numpy(), grid.lower_m, grid.upper_m, out_png, title="matched-filter power (mean over views)")
     click.echo(f"wrote {out_image} and {out_png}")
     return image
 
 
+_RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADDRESS joins a cluster."
+
+
 @main.command("simulate")
-@click.argument("scene_name")
+@click.argument("scene_name", required=False)
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
-@click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
-@click.option("--seed", type=SEED, default=0, show_default=True, help="Noise and sampling seed (0 to 2^32-1).")
+@click.option("--out", type=click.Path(path_type=Path), required=True,
+              help="Measurements file (.h5); with --random a dataset folder.")
+@click.option("--seed", type=SEED, default=0, show_default=True,
+              help="Noise and sampling seed (0 to 2^32-1); with --random the first scene's seed.")
+@click.option("--random", "random_count", type=click.IntRange(1, 10**6), default=None,
+              help="Instead of SCENE_NAME: this many seeded random scenes, each a scene file + measurements.")
+@click.option("--workers", type=click.IntRange(1, 1024), default=1, show_default=True,
+              help="With --random: scenes at once in a local process pool.")
+@click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
 @_one_line_errors
-def simulate_cmd(scene_name: str, radar_name: str, out: Path, seed: int):
-    """Simulate radar measurements of a scene and write them to an HDF5 file."""
+def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,
+                 workers: int, ray_address: str | None):
+    """Simulate radar measurements of a scene and write them to an HDF5 file, or (--random N)
+    a dataset of N random scenes: OUT/scene-NNNNN.toml + .h5 and OUT/dataset.json."""
+    if (scene_name is None) == (random_count is None):
+        raise ValueError("give a SCENE_NAME or --random N (not both)")
+    if random_count is not None:
+        from .dataset import simulate_dataset
+
+        rows = simulate_dataset(random_count, out, radar=radar_name, base_seed=seed, workers=workers,
+                                ray_address=ray_address, log=click.echo)
+        failed = sum(row["status"] == "failed" for row in rows)
+        click.echo(f"wrote {out / 'dataset.json'} ({len(rows) - failed} scenes, {failed} failed)")
+        return
     from .radar import write_measurements
 
     _refuse_overwriting_inputs(out, scene_name, radar_name)
@@ -190,8 +215,10 @@ _BOUNDS_HELP = "Box to image [m], XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the bo
 @click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] (default: box extent / 64).")
 @click.option("--bounds", default=None, help=_BOUNDS_HELP)
 @click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image.")
+@click.option("--method", type=click.Choice(["auto", "exact", "fast"]), default="auto", show_default=True,
+              help="exact adjoint, or fast range-profile back-projection (auto: fast from 32 frequencies).")
 @_one_line_errors
-def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None):
+def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None, method: str):
     """Matched-filter image of a measurements file, plus maximum-intensity projections (PNG)."""
     from .radar import read_measurements
 
@@ -199,7 +226,7 @@ def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, 
     _refuse_overwriting_inputs(out.with_suffix(".mip.png"), data, scene_name)
     measurements = read_measurements(data)
     lower, upper = _image_box(data, measurements, bounds, scene_name)
-    _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"))
+    _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"), method)
 
 
 @main.command("import-fmcw")
@@ -352,3 +379,24 @@ def view_cmd(mesh_path: Path, scene_name: str | None, out: Path | None):
     out = out or mesh_path.with_suffix(".html")
     _refuse_overwriting_inputs(out, mesh_path)
     click.echo(f"wrote {write_view(mesh_path, out, scene_name=scene_name)}")
+
+
+@main.command("sweep")
+@click.argument("sweep_file", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Folder: one run folder per job + summary.")
+@click.option("--workers", type=click.IntRange(1, 1024), default=1, show_default=True,
+              help="Jobs at once in the local process pool (the cores are shared between them).")
+@click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
+@_one_line_errors
+def sweep_cmd(sweep_file: Path, out: Path, workers: int, ray_address: str | None):
+    """Run every job of a sweep file (scene, radar, reconstruction settings, seed), each as
+    `rfsdf demo` into its own folder; write summary.csv, summary.json and summary.png.
+    A rerun skips finished jobs and resumes unfinished fits."""
+    from .sweep import load_sweep, run_sweep
+
+    jobs = load_sweep(sweep_file)
+    where = f"Ray ({ray_address})" if ray_address else f"{workers} local worker{'s' * (workers > 1)}"
+    click.echo(f"{len(jobs)} jobs on {where} -> {out}")
+    rows = run_sweep(jobs, out, workers=workers, ray_address=ray_address, log=click.echo)
+    failed = sum(row["status"] == "failed" for row in rows)
+    click.echo(f"wrote {out / 'summary.csv'}, summary.json, summary.png ({len(rows) - failed} finished, {failed} failed)")

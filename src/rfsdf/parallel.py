@@ -1,0 +1,53 @@
+"""Run independent tasks on the standard engines: in this process, a local process pool
+(``concurrent.futures``), or Ray tasks on a local instance or a cluster. No scheduler,
+queue or retry loop of our own: the engines have them."""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Callable, Sequence
+
+from .errors import RfsdfError
+
+__all__ = ["threads_per_worker", "map_tasks"]
+
+
+def threads_per_worker(workers: int) -> int:
+    """Torch threads for each of ``workers`` concurrent tasks sharing this machine's cores."""
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+def map_tasks(function: Callable, arguments: Sequence[tuple], *, workers: int = 1, ray_address: str | None = None,
+              cpus_per_task: int = 1, on_result: Callable[[int, object], None] = lambda i, r: None) -> list:
+    """[function(*a) for a in arguments], run in this process (``workers`` 1), a process pool
+    of ``workers``, or as Ray tasks (``ray_address``: "local" starts a Ray instance, anything
+    else is passed to ``ray.init``) with ``cpus_per_task`` each. ``on_result(index, result)``
+    is called as each finishes. ``function`` must be importable (pickled by reference)."""
+    results: list = [None] * len(arguments)
+
+    def finished(index: int, result) -> None:
+        results[index] = result
+        on_result(index, result)
+
+    if ray_address is not None:
+        try:
+            import ray
+        except ImportError:
+            raise RfsdfError("--ray: Ray is not installed (pip install 'rfsdf[cluster]')") from None
+        ray.init(address=None if ray_address == "local" else ray_address, ignore_reinit_error=True,
+                 include_dashboard=False, log_to_driver=False, configure_logging=False)
+        task = ray.remote(num_cpus=cpus_per_task)(function)
+        pending = {task.remote(*args): i for i, args in enumerate(arguments)}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            finished(pending.pop(done[0]), ray.get(done[0]))
+    elif workers <= 1:
+        for i, args in enumerate(arguments):
+            finished(i, function(*args))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(function, *args): i for i, args in enumerate(arguments)}
+            for future in as_completed(futures):
+                finished(futures[future], future.result())
+    return results

@@ -1,0 +1,107 @@
+"""Sweeps: the jobs a file names, the local pool and Ray giving the same rows, resuming, failures."""
+
+import json
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from rfsdf.cli import main
+from rfsdf.errors import RfsdfError
+from rfsdf.sweep import load_sweep, run_sweep
+
+# The smallest job that still runs every stage of the demo: the quick settings on one
+# sphere, seen by a toy radar (6 views of a 2 cm array, 10 Tx, 10 Rx, 8 frequencies).
+_TINY = """
+[defaults]
+quick = true
+scene = "sphere"
+radar = "tiny.toml"
+recon = { init = { steps = 10 }, train = { steps = 2, checkpoint_every = 1 } }
+"""
+_TINY_RADAR = ('name = "tiny"\n[waveform]\nkind = "ofdm"\ncarrier_hz = 79e9\nbandwidth_hz = 4e9\nsubcarriers = 8\n'
+               '[array]\nkind = "boundary"\nsize_m = 0.02\nelements_per_edge = 5\n'
+               '[views]\ndistance_m = 0.3\nazimuths_per_ring = [4, 1, 1]\nelevations_rad = [0.0, 1.4, -1.4]\n'
+               '[noise]\nsnr_db = 40.0\n')
+
+
+def _write(path, text):
+    path.write_text(text)
+    if text.startswith(_TINY):
+        (path.parent / "tiny.toml").write_text(_TINY_RADAR)
+    return path
+
+
+def test_sweep_file_expands_grid_and_listed_jobs(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    _write(tmp_path / "scenes" / "mine.toml", "")
+    jobs = load_sweep(_write(tmp_path / "s.toml", """
+[defaults]
+quick = true
+recon = { train = { steps = 3 } }
+[grid]
+scene = ["objects", "sphere"]
+seed = [0, 7]
+[[jobs]]
+scene = "scenes/mine.toml"
+radar = "dense-77g"
+recon = { init = { threshold = 0.12 } }
+"""))
+    assert [j.name for j in jobs] == ["000-objects-near-77g-seed0", "001-objects-near-77g-seed7",
+                                      "002-sphere-near-77g-seed0", "003-sphere-near-77g-seed7",
+                                      "004-mine-dense-77g-seed0"]
+    assert jobs[1].settings.seed == 7 and jobs[1].settings.voxel_m == 0.015  # quick
+    assert jobs[4].settings.scene == str((tmp_path / "scenes" / "mine.toml").resolve())
+    # Listed recon tables merge into the defaults and the quick settings, key by key.
+    recon = jobs[4].settings.recon
+    assert recon["init"]["threshold"] == 0.12 and recon["init"]["steps"] == 40 and recon["train"]["steps"] == 3
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[grid]\nsceen = ['objects']", "grid: unknown job key(s) sceen; known: scene, radar"),
+    ("[grid]\nseed = []", "every grid list needs at least one value"),
+    ("[[jobs]]\nseed = -1", "job 0: seed: Input should be greater than or equal to 0"),
+    ("title = 'x'", "title: Extra inputs are not permitted"),
+    ("", "no jobs"),
+])
+def test_bad_sweep_files_are_one_line(tmp_path, text, message):
+    with pytest.raises(RfsdfError, match=re.escape(message)):
+        load_sweep(_write(tmp_path / "bad.toml", text))
+
+
+def _metrics(rows):
+    return [{k: v for k, v in row.items() if not k.startswith("time.") and k not in ("status", "seconds_per_step")}
+            for row in rows]
+
+
+def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_finished_jobs(tmp_path):
+    jobs = load_sweep(_write(tmp_path / "s.toml", _TINY + "[grid]\nseed = [0, 1]\n[[jobs]]\nradar = 'no-such-radar'\n"))
+    pool = run_sweep(jobs, tmp_path / "pool", workers=2, log=lambda _: None)
+    assert [r["status"] for r in pool] == ["done", "done", "failed"]
+    assert pool[0]["neural.full.chamfer_l1_mm"] != pool[1]["neural.full.chamfer_l1_mm"]  # two seeds, two fits
+    assert pool[2]["error"].startswith("RfsdfError: no-such-radar: no such radar file or preset")
+    assert "\n" not in pool[2]["error"]
+    csv_lines = (tmp_path / "pool" / "summary.csv").read_text().splitlines()
+    assert csv_lines[0].startswith("job,scene,radar,seed") and len(csv_lines) == 4 and ",failed," in csv_lines[3]
+    assert (tmp_path / "pool" / "summary.png").stat().st_size > 0
+
+    pytest.importorskip("ray", reason="Ray is not installed (pip install 'rfsdf[cluster]')")
+    on_ray = run_sweep(jobs, tmp_path / "ray", workers=2, ray_address="local", log=lambda _: None)  # 1 thread each
+    assert _metrics(on_ray) == _metrics(pool)
+    summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
+    assert summary["rows"] == json.loads(json.dumps(on_ray))
+
+    # A sweep killed during its second job: the rerun reuses the first, runs only the
+    # second (reading its data back and continuing its fit from the checkpoint left).
+    (tmp_path / "pool" / jobs[1].name / "metrics.json").unlink()
+    rerun = run_sweep(jobs, tmp_path / "pool", workers=2, log=lambda _: None)
+    assert [r["status"] for r in rerun] == ["reused", "done", "failed"]
+    assert _metrics(rerun) == _metrics(pool)
+
+
+def test_sweep_command_reports_bad_files_in_one_line(tmp_path):
+    bad = _write(tmp_path / "bad.toml", "[grid]\nseed = 'zero'\n")
+    result = CliRunner().invoke(main, ["sweep", str(bad), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0 and result.output.startswith(f"error: {bad}: grid.seed")
+    assert not (tmp_path / "o").exists()
