@@ -29,6 +29,6 @@ def plot_sweep_summary(rows: list[dict], path, *, title: str = "sweep: Chamfer-L
             ax.text(i, 0, "failed", ha="center", va="bottom", rotation=90, color="crimson")
     ax.set_xticks(x, jobs, rotation=30, ha="right")
     ax.set_ylabel("Chamfer-L1 [mm]")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.set_title(title)
     return save_figure(fig, path)
