@@ -400,3 +400,26 @@ def sweep_cmd(sweep_file: Path, out: Path, workers: int, ray_address: str | None
     rows = run_sweep(jobs, out, workers=workers, ray_address=ray_address, log=click.echo)
     failed = sum(row["status"] == "failed" for row in rows)
     click.echo(f"wrote {out / 'summary.csv'}, summary.json, summary.png ({len(rows) - failed} finished, {failed} failed)")
+
+
+@main.command("study")
+@click.argument("name", required=False)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("studies"), show_default=True,
+              help="Folder for NAME.json and NAME.png.")
+@click.option("--quick", is_flag=True, help="The test-suite size: seconds, same claims, coarser numbers.")
+@click.option("--list", "list_studies", is_flag=True, help="Name every study with one line each.")
+@_one_line_errors
+def study_cmd(name: str | None, out: Path, quick: bool, list_studies: bool):
+    """Reproduce one claim behind the method on the library itself: a figure (PNG) and its
+    numbers (JSON); docs/studies/NAME.md says what they show."""
+    from .studies import STUDIES, run_study
+
+    if list_studies:
+        width = max(map(len, STUDIES))
+        for study in STUDIES.values():
+            click.echo(f"{study.NAME:<{width}}  {study.SUMMARY}")
+        return
+    if name not in STUDIES:
+        raise ValueError(f"unknown study {name!r}; known: {', '.join(STUDIES)} (rfsdf study --list)")
+    json_path, png_path = run_study(STUDIES[name], out, quick=quick)
+    click.echo(f"wrote {json_path} and {png_path}")

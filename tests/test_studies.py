@@ -1,0 +1,56 @@
+"""Every study at --quick size: its JSON keys, and the sign of each claim it makes."""
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from rfsdf.cli import main
+from rfsdf.studies import STUDIES
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """Each study run once through the CLI at --quick size: its JSON."""
+    out = tmp_path_factory.mktemp("studies")
+    found = {}
+    for name in STUDIES:
+        result = CliRunner().invoke(main, ["study", name, "--quick", "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert (out / f"{name}.png").stat().st_size > 0
+        found[name] = json.loads((out / f"{name}.json").read_text())
+    return found
+
+
+def test_every_study_writes_its_settings_and_documented_result(results):
+    for name, data in results.items():
+        assert data["study"] == name and data["quick"] is True and data["settings"]
+        assert set(data["result"]) == {f.name for f in STUDIES[name].Result.__dataclass_fields__.values()}
+
+
+def test_sphere_tracing_centre_ray_one_step_grazing_slow_and_history_closed_form(results):
+    r = results["sphere-tracing"]["result"]
+    assert set(r["centre_ray_steps"].values()) == {1} and r["every_ray_below_radius_hits"]
+    for steps in r["steps"].values():
+        assert steps[-1] > 10 * steps[1]  # 89.9 deg against the first oblique angle
+    assert r["worked_max_difference_m"] < 1e-12 and len(r["worked_traced_m"]) > 3
+
+
+def test_eikonal_exact_shapes_and_where_csg_stops_being_a_distance(results):
+    r = results["eikonal"]["result"]
+    assert max(r["residual_max"].values()) < 1e-9  # float64: every primitive and transform
+    assert r["union"]["residual_max"] < 1e-9  # min() keeps |grad f| = 1 ...
+    assert r["union"]["error_inside_max_mm"] > 10 > 1 > r["union"]["error_outside_max_mm"]  # ... but not the distance
+    assert r["smooth_union"]["residual_max"] > 0.1
+
+
+def test_eikonal_1d_fit_is_a_signed_distance_to_the_point(results):
+    r = results["eikonal-1d"]["result"]
+    assert r["max_error_away"] < 5e-3 and r["zeros"] == 1 and r["sign"] in (-1, 1)
+
+
+def test_study_list_and_unknown_name():
+    listed = CliRunner().invoke(main, ["study", "--list"])
+    assert listed.exit_code == 0 and all(name in listed.output for name in STUDIES)
+    unknown = CliRunner().invoke(main, ["study", "marching"])
+    assert unknown.exit_code == 2 and unknown.output.startswith("error: unknown study 'marching'; known: ")
