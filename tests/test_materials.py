@@ -78,3 +78,14 @@ def test_permittivity_estimate_rejects_inconsistent_data():
         estimate_permittivity([0.1], [0.1])
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         estimate_permittivity([0.1, 0.2], [0.1, 1.5])
+
+
+@pytest.mark.parametrize("pol", ["TE", "TM"])
+def test_permittivity_with_an_unknown_gain_comes_from_the_shape_across_angles(pol):
+    thetas = np.radians([20.0, 50.0])
+    measured = 3.7 * reflectance(torch.as_tensor(thetas), 5.24, pol).numpy()  # an uncalibrated radar's scale
+    result = estimate_permittivity(thetas, measured, pol, unknown_gain=True)
+    assert result.eps_real == pytest.approx(5.24, rel=1e-5) and result.gain == pytest.approx(3.7, rel=1e-5)
+    # With the gain assumed known, the same data fit nothing (or something else).
+    with pytest.raises(ValueError, match="no permittivity|must be finite and in"):
+        estimate_permittivity(thetas, measured, pol)

@@ -54,3 +54,14 @@ def test_study_list_and_unknown_name():
     assert listed.exit_code == 0 and all(name in listed.output for name in STUDIES)
     unknown = CliRunner().invoke(main, ["study", "marching"])
     assert unknown.exit_code == 2 and unknown.output.startswith("error: unknown study 'marching'; known: ")
+
+
+def test_permittivity_needs_separated_angles_and_tm_beyond_brewster_is_ambiguous(results):
+    r = results["permittivity"]["result"]
+    noise, separation = r["noise_levels"], r["separations_deg"]
+    assert noise == [0.001, 0.1] and separation == [2.0, 50.0]
+    te = r["relative_rms_error"]["TE"]
+    assert te[0][1] < 0.01 < 0.05 < te[0][0]  # at 0.1 % noise: 50 deg apart recovers eps', 2 deg barely
+    assert te[1][0] > 1 > 0.5 > te[1][1]  # at 10 % noise 2 deg apart is hopeless, 50 deg is not
+    assert r["noiseless_estimate"]["TE"] == pytest.approx(5.24, rel=1e-5)
+    assert abs(r["noiseless_estimate"]["TM"] / 5.24 - 1) > 0.5  # 20 and 70 deg straddle a Brewster angle

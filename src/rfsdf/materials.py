@@ -137,21 +137,27 @@ def brewster_angle(eps_real: float) -> float:
 
 @dataclass(frozen=True)
 class PermittivityEstimate:
-    """eps_real: the fitted relative permittivity; rms_residual: RMS reflectance misfit."""
+    """eps_real: the fitted relative permittivity; rms_residual: RMS reflectance misfit
+    (relative to the RMS of the data when the gain was unknown); gain: the fitted
+    calibration factor of the reflectances (1 when it was known)."""
 
     eps_real: float
     rms_residual: float
+    gain: float = 1.0
 
 
 def estimate_permittivity(
     thetas_rad, reflectances, polarization: str = "TE", *,
-    bracket: tuple[float, float] = (1.0, 100.0), tolerance: float = 0.02,
+    bracket: tuple[float, float] = (1.0, 100.0), tolerance: float = 0.02, unknown_gain: bool = False,
 ) -> PermittivityEstimate:
     """Recover eps' of a lossless dielectric from power reflectances at >= 2 incidence angles.
 
-    Least squares over ``bracket``: a log-spaced scan finds the basin, bounded Brent
-    refines it. Raises ValueError when the inputs are invalid or the best fit still
-    misses the data by more than ``tolerance`` (RMS, in reflectance units).
+    Least squares over ``bracket``: a log-spaced scan (vectorised) finds the basin, bounded
+    Brent refines it. With ``unknown_gain`` the reflectances are known only up to a factor
+    (a radar's amplitude calibration): for each eps' the factor is fitted in closed form,
+    so only the shape of R(theta) across the angles decides, and the misfit is relative.
+    Raises ValueError when the inputs are invalid or the best fit still misses the data
+    by more than ``tolerance`` (RMS, in reflectance units, or relative with unknown gain).
     """
     thetas = np.asarray(thetas_rad, dtype=float).ravel()
     measured = np.asarray(reflectances, dtype=float).ravel()
@@ -159,22 +165,29 @@ def estimate_permittivity(
         raise ValueError(f"need reflectances at >= 2 angles with one angle each, got {thetas.size} and {measured.size}")
     if not np.all((thetas >= 0) & (thetas < np.pi / 2)):
         raise ValueError("incidence angles must lie in [0, pi/2) rad")
-    if not np.all(np.isfinite(measured) & (measured >= 0) & (measured <= 1)):
+    if not np.all(np.isfinite(measured) & (measured >= 0) & ((measured <= 1) | unknown_gain)):
         raise ValueError("reflectances must be finite and in [0, 1]")
     t = torch.as_tensor(thetas)
 
-    def misfit(eps_real: float) -> float:
-        model = reflectance(t, eps_real, polarization).numpy()
-        return float(np.sqrt(np.mean((model - measured) ** 2)))
+    def misfits(eps_real: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(misfit, gain) for each eps' of a (S,) array."""
+        model = reflectance(t[None, :], torch.as_tensor(eps_real)[:, None], polarization).numpy()
+        if not unknown_gain:
+            return np.sqrt(np.mean((model - measured) ** 2, axis=1)), np.ones(len(model))
+        gain = (model @ measured) / np.maximum((model**2).sum(1), 1e-300)
+        scale = max(float(np.sqrt(np.mean(measured**2))), 1e-300)
+        return np.sqrt(np.mean((gain[:, None] * model - measured) ** 2, axis=1)) / scale, gain
 
     scan = np.geomspace(*bracket, 400)
-    i = int(np.argmin([misfit(e) for e in scan]))
+    i = int(np.argmin(misfits(scan)[0]))
     lo, hi = scan[max(i - 1, 0)], scan[min(i + 1, scan.size - 1)]
-    result = optimize.minimize_scalar(misfit, bounds=(lo, hi), method="bounded", options={"xatol": 1e-8})
-    eps_best, rms = float(result.x), float(result.fun)
+    result = optimize.minimize_scalar(lambda e: float(misfits(np.array([e]))[0][0]), bounds=(lo, hi),
+                                      method="bounded", options={"xatol": 1e-8})
+    eps_best = float(result.x)
+    rms, gain = (float(v[0]) for v in misfits(np.array([eps_best])))
     if rms > tolerance:
         raise ValueError(
             f"no permittivity in [{bracket[0]}, {bracket[1]}] fits these reflectances "
             f"(best eps'={eps_best:.3g} misses by RMS {rms:.3g} > {tolerance})"
         )
-    return PermittivityEstimate(eps_best, rms)
+    return PermittivityEstimate(eps_best, rms, gain)
