@@ -5,11 +5,13 @@ samples of each step). Per seed: the warm start's and the fit's full, observed-s
 per-object scores; then their mean, standard deviation, min and max.
 
 Usage: python benchmarks/seeds.py [--seeds 0,1,2] [--out benchmarks/results/seeds.json]
+       [--recon '{"init": {"threshold": "auto"}}']   (reconstruction settings over the defaults)
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 from functools import partial
 from pathlib import Path
@@ -44,24 +46,27 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seeds", default="0,1,2", help="Comma-separated fit seeds.")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/seeds.json"))
+    parser.add_argument("--recon", type=json.loads, default={}, help="ReconConfig overrides (JSON tables).")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
 
     data = demo_data()
     demo, scene, grid = data.settings, data.scene, data.image.grid
     clean = clean_image(data.measurements, grid)
+    print(f"CLEAN residual floor {clean.residual_floor():.4f}", flush=True)
     score = partial(evaluate_scene, scene=scene, samples=demo.metric_samples, seed=demo.seed,
                     observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
     mesh = lambda field: extract_mesh(field.sdf, scene.lower_m, scene.upper_m, demo.mesh_resolution)  # noqa: E731
     runs = []
     for seed in seeds:
-        config = ReconConfig.model_validate({"train": {"seed": seed}})
+        overrides = {**args.recon, "train": {**args.recon.get("train", {}), "seed": seed}}
+        config = ReconConfig.model_validate(overrides)
         with tempfile.TemporaryDirectory() as run:
             fit = Trainer(Problem(data.measurements, grid, clean=clean), config, run).fit()
         runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
                      "neural": _scores(score(mesh(fit.field))), "seconds_per_step": fit.seconds_per_step})
         print(to_json(runs[-1], indent=None), flush=True)
-    result = {"seeds": seeds, "runs": runs, "warm_start": _spread([r["warm_start"] for r in runs]),
+    result = {"seeds": seeds, "recon": args.recon, "runs": runs, "warm_start": _spread([r["warm_start"] for r in runs]),
               "neural": _spread([r["neural"] for r in runs])}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(to_json(result))

@@ -65,3 +65,25 @@ def test_permittivity_needs_separated_angles_and_tm_beyond_brewster_is_ambiguous
     assert te[1][0] > 1 > 0.5 > te[1][1]  # at 10 % noise 2 deg apart is hopeless, 50 deg is not
     assert r["noiseless_estimate"]["TE"] == pytest.approx(5.24, rel=1e-5)
     assert abs(r["noiseless_estimate"]["TM"] / 5.24 - 1) > 0.5  # 20 and 70 deg straddle a Brewster angle
+
+
+def test_marching_cubes_error_falls_as_h_squared_on_an_exact_sdf_and_plateaus_on_a_fitted_one(results):
+    r = results["marching-cubes"]["result"]
+    assert r["error_order"] < -1.6  # about -2
+    assert r["exact"]["evaluations"] == [n**3 for n in r["resolutions"]]
+    fitted, exact = r["fitted"]["mean_mm"], r["exact"]["mean_mm"]
+    assert fitted[-1] > 0.7 * fitted[1] and fitted[-1] > 5 * exact[-1]  # the fit's error, not the mesher's
+
+
+def test_loss_gradient_autograd_matches_finite_differences_in_every_layer(results):
+    r = results["loss-gradient"]["result"]
+    geometry = [e for name, e in zip(r["layers"], r["relative_error"]) if name.startswith("geometry")]
+    assert len(geometry) >= 6 and max(geometry) < 1e-5  # through the projection, scatter, A and A^H
+    assert max(r["relative_error"]) < 1e-3  # the reflectivity layers' derivatives are small, FD noisier
+
+
+def test_geometric_init_gives_one_component_where_random_init_gives_any_number(results):
+    r = results["geometric-init"]["result"]
+    assert set(r["components_at_init"]["geometric"]) == {1} == set(r["components_after_fit"]["geometric"])
+    assert set(r["components_at_init"]["random"]) != {1}  # several, or none, depending on the seed
+    assert max(r["residual_mm"]["geometric"]) < min(r["residual_mm"]["random"])
