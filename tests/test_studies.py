@@ -87,3 +87,9 @@ def test_geometric_init_gives_one_component_where_random_init_gives_any_number(r
     assert set(r["components_at_init"]["geometric"]) == {1} == set(r["components_after_fit"]["geometric"])
     assert set(r["components_at_init"]["random"]) != {1}  # several, or none, depending on the seed
     assert max(r["residual_mm"]["geometric"]) < min(r["residual_mm"]["random"])
+
+
+def test_encoding_levels_quick_run_is_sane(results):
+    r = results["encoding-levels"]["result"]
+    assert r["suggested_levels"] == 4  # ceil(log2(120 mm / 8 mm))
+    assert all(0 < e < 20 for e in r["small_error_mm"] + r["large_error_mm"])
