@@ -22,7 +22,7 @@ import tomli_w
 
 from .atomic import atomic_path
 from .jsonio import to_json
-from .parallel import map_tasks, threads_per_worker
+from .parallel import error_line, map_tasks, threads_per_worker
 from .random_scenes import random_scene_spec
 
 __all__ = ["simulate_scene_file", "simulate_dataset"]
@@ -53,7 +53,7 @@ def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, thre
         write_measurements(data_path, simulate(scene, radar, seed=seed))
         row["status"] = "done"
     except Exception as exc:  # noqa: BLE001 - one failed scene is a row, not the end of the dataset
-        row.update(status="failed", error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+        row.update(status="failed", error=error_line(exc))
     row["seconds"] = round(time.perf_counter() - start, 2)
     return row
 

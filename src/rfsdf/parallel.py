@@ -10,12 +10,17 @@ from typing import Callable, Sequence
 
 from .errors import RfsdfError
 
-__all__ = ["threads_per_worker", "map_tasks"]
+__all__ = ["threads_per_worker", "error_line", "map_tasks"]
 
 
 def threads_per_worker(workers: int) -> int:
     """Torch threads for each of ``workers`` concurrent tasks sharing this machine's cores."""
     return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+def error_line(exc: BaseException) -> str:
+    """A task's failure as the one line its result row records: 'Type: first line of the message'."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0]
 
 
 def map_tasks(function: Callable, arguments: Sequence[tuple], *, workers: int = 1, ray_address: str | None = None,

@@ -46,7 +46,7 @@ from .config import StrictModel, read_toml, validate
 from .demo import QUICK, SETTINGS_NAME, DemoSettings, run_demo
 from .errors import RfsdfError
 from .jsonio import to_json
-from .parallel import map_tasks, threads_per_worker
+from .parallel import error_line, map_tasks, threads_per_worker
 
 __all__ = ["JobSpec", "SweepSpec", "Job", "load_sweep", "run_job", "run_sweep", "summary_row"]
 
@@ -145,7 +145,7 @@ def run_job(job: Job, folder: str, threads: int) -> dict:
             status = "done"
         return summary_row(job, status, metrics=metrics)
     except Exception as exc:  # noqa: BLE001 - a failed job is a row, not the end of the sweep
-        return summary_row(job, "failed", error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+        return summary_row(job, "failed", error=error_line(exc))
 
 
 def _finished(folder: Path, settings: DemoSettings) -> dict | None:
