@@ -11,7 +11,7 @@ from rfsdf.errors import RfsdfError
 from rfsdf.field import RadarField
 from rfsdf.geometry import Grid
 from rfsdf.materials import fresnel
-from rfsdf.radar import load_radar, simulate
+from rfsdf.radar import simulate
 from rfsdf.radar.scattering import lit_mask
 from rfsdf.radar.simulate import SAMPLES_PER_WAVELENGTH
 from rfsdf.recon import (
@@ -23,17 +23,6 @@ from rfsdf.recon.warm_start import fit_to_image
 from rfsdf.scene import load_scene
 
 RADIUS = 0.02  # the `sphere` preset: a 2 cm metal ball at the origin
-
-
-@pytest.fixture(scope="module")
-def tiny_radar(tmp_path_factory):
-    """Six views around the origin, a 4 cm boundary array (6 Tx, 6 Rx), 8 frequencies."""
-    path = tmp_path_factory.mktemp("radar") / "tiny.toml"
-    path.write_text('name = "tiny"\n[waveform]\nkind = "ofdm"\ncarrier_hz = 79e9\nbandwidth_hz = 4e9\nsubcarriers = 8\n'
-                    '[array]\nkind = "boundary"\nsize_m = 0.04\nelements_per_edge = 3\n'
-                    '[views]\ndistance_m = 0.3\nazimuths_per_ring = [4, 1, 1]\nelevations_rad = [0.0, 1.4, -1.4]\n'
-                    '[noise]\nsnr_db = 40.0\n')
-    return load_radar(path)
 
 
 @pytest.fixture(scope="module")
@@ -245,6 +234,17 @@ def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_p
     other = Problem(dataclasses.replace(data, data=data.data * 1.5), _grid(10), "other.h5")
     with pytest.raises(RfsdfError, match="fitted on data.h5 .* not on other.h5"):
         Trainer(other, _config(), tmp_path / "b").fit(resume=True)
+
+
+def test_a_run_resumes_on_another_device_but_not_with_other_settings(sphere_data, tmp_path):
+    """The device says where a fit runs, not what it fits: a run started under one
+    train.device goes on under another; any other setting refuses."""
+    _, data = sphere_data
+    problem = Problem(data, _grid(10), "data.h5")
+    Trainer(problem, _config(steps=6, device="auto"), tmp_path / "run").fit()
+    assert len(Trainer(problem, _config(steps=6, device="cpu"), tmp_path / "run").fit(resume=True).log) == 6
+    with pytest.raises(RfsdfError, match="made with another config"):
+        Trainer(problem, _config(steps=6, lr=2e-3), tmp_path / "run").fit(resume=True)
 
 
 def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(sphere_data, tmp_path, monkeypatch):

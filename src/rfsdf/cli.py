@@ -113,7 +113,7 @@ def scene_show(name_or_file: str, out: Path | None):
     click.echo(f"wrote {out}")
 
 
-def _simulate(scene_name: str, radar_name: str, seed: int):
+def _simulate(scene_name: str, radar_name: str, seed: int, device):
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from .scene import load_scene
 
@@ -122,10 +122,10 @@ def _simulate(scene_name: str, radar_name: str, seed: int):
     check_materials_in_band(sc, rad, source=scene_name)
     click.echo(sc.summary())
     click.echo(rad.summary())
-    return sc, simulate(sc, rad, seed=seed, progress=True)
+    return sc, simulate(sc, rad, seed=seed, device=device, progress=True)
 
 
-def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path, method: str):
+def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path, method: str, device):
     from .geometry import Grid
     from .radar import matched_filter, write_image
     from .radar.imaging import imaging_method, require_image_memory
@@ -133,16 +133,26 @@ def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_
 
     grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
     require_image_memory(measurements.acquisition.shape[0], grid)
-    chosen = imaging_method(measurements.acquisition, method)
+    chosen = imaging_method(measurements.acquisition, method, device)
     why = {"fast": "range-profile back-projection", "exact": "the sensing operator's adjoint"}[chosen]
     click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm "
                f"({measurements.acquisition.num_measurements} measurements): {chosen} ({why}"
-               f"{', chosen by --method auto' if method == 'auto' else ''})")
-    image = matched_filter(measurements, grid, method=chosen, progress=True)
+               f"{', chosen by --method auto' if method == 'auto' else ''}) on {device}")
+    image = matched_filter(measurements, grid, method=chosen, device=device, progress=True)
     write_image(out_image, image)
     plot_mip(image.power().numpy(), grid.lower_m, grid.upper_m, out_png, title="matched-filter power (mean over views)")
     click.echo(f"wrote {out_image} and {out_png}")
     return image
+
+
+def _device_option(default: str | None = "auto", text: str = "Where the tensors live: auto (CUDA when there is a GPU), cpu or cuda[:N]."):
+    return click.option("--device", default=default, show_default=default is not None, help=text)
+
+
+def _device(name: str | None):
+    from .device import resolve_device
+
+    return resolve_device(name)
 
 
 _RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADDRESS joins a cluster."
@@ -160,9 +170,10 @@ _RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADD
 @click.option("--workers", type=click.IntRange(1, 1024), default=1, show_default=True,
               help="With --random: scenes at once in a local process pool.")
 @click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
+@_device_option()
 @_one_line_errors
 def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,
-                 workers: int, ray_address: str | None):
+                 workers: int, ray_address: str | None, device: str):
     """Simulate radar measurements of a scene and write them to an HDF5 file, or (--random N)
     a dataset of N random scenes: OUT/scene-NNNNN.toml + .h5 and OUT/dataset.json."""
     if (scene_name is None) == (random_count is None):
@@ -170,15 +181,16 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
     if random_count is not None:
         from .dataset import simulate_dataset
 
+        _device(device)  # refuse a device this machine lacks before any scene is drawn
         rows = simulate_dataset(random_count, out, radar=radar_name, base_seed=seed, workers=workers,
-                                ray_address=ray_address, log=click.echo)
+                                ray_address=ray_address, device=device, log=click.echo)
         failed = sum(row["status"] == "failed" for row in rows)
         click.echo(f"wrote {out / 'dataset.json'} ({len(rows) - failed} scenes, {failed} failed)")
         return
     from .radar import write_measurements
 
     _refuse_overwriting_inputs(out, scene_name, radar_name)
-    _, measurements = _simulate(scene_name, radar_name, seed)
+    _, measurements = _simulate(scene_name, radar_name, seed, _device(device))
     write_measurements(out, measurements)
     click.echo(f"wrote {out}")
 
@@ -216,17 +228,20 @@ _BOUNDS_HELP = "Box to image [m], XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (default: the bo
 @click.option("--bounds", default=None, help=_BOUNDS_HELP)
 @click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image.")
 @click.option("--method", type=click.Choice(["auto", "exact", "fast"]), default="auto", show_default=True,
-              help="exact adjoint, or fast range-profile back-projection (auto: fast from 32 frequencies).")
+              help="exact adjoint, or fast range-profile back-projection (auto: fast from 32 frequencies, on a CPU).")
+@_device_option()
 @_one_line_errors
-def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None, method: str):
+def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None, method: str,
+              device: str):
     """Matched-filter image of a measurements file, plus maximum-intensity projections (PNG)."""
     from .radar import read_measurements
 
+    device = _device(device)
     _refuse_overwriting_inputs(out, data, scene_name)
     _refuse_overwriting_inputs(out.with_suffix(".mip.png"), data, scene_name)
     measurements = read_measurements(data)
     lower, upper = _image_box(data, measurements, bounds, scene_name)
-    _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"), method)
+    _image(measurements, lower, upper, _voxel(voxel_m, lower, upper), out, out.with_suffix(".mip.png"), method, device)
 
 
 @main.command("import-fmcw")
@@ -252,9 +267,10 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] of the fit's images (default: extent / 50).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None, help="Reconstruction TOML.")
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint.")
+@_device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
-                    config_path: Path | None, resume: bool):
+                    config_path: Path | None, resume: bool, device: str | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply.
 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA."""
@@ -266,6 +282,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
     _refuse_overwriting_inputs(out, data, image_path, config_path)
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
+    if device is not None:
+        config = config.model_copy(update={"train": config.train.model_copy(update={"device": str(_device(device))})})
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
@@ -278,8 +296,9 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     else:
         lower, upper = _image_box(data, measurements, bounds, None)
         grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
-    fit = Trainer(Problem(measurements, grid, str(data)), config, out, progress=True).fit(resume=resume)
-    mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution)
+    trainer = Trainer(Problem(measurements, grid, str(data)), config, out, progress=True)
+    fit = trainer.fit(resume=resume)
+    mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
 
 
@@ -295,16 +314,18 @@ def _run_config(run: Path) -> Path | None:
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Mesh file (.ply, .obj, .stl).")
 @click.option("--resolution", type=click.IntRange(2, 1024), default=128, show_default=True,
               help="Voxels along the longest edge (2 to 1024).")
+@_device_option()
 @_one_line_errors
-def mesh_cmd(run: Path, out: Path, resolution: int):
+def mesh_cmd(run: Path, out: Path, resolution: int, device: str):
     """Mesh the SDF of a reconstruction run by marching cubes."""
     from .mesh import export_mesh, extract_mesh
     from .recon import load_field
     from .recon.checkpoint import CHECKPOINT_NAME, CONFIG_NAME
 
+    device = _device(device)
     _refuse_overwriting_inputs(out, run / CHECKPOINT_NAME, run / CONFIG_NAME)
-    field = load_field(run)
-    mesh = extract_mesh(field.sdf, field.lower_m, field.upper_m, resolution, progress=True)
+    field = load_field(run, device)
+    mesh = extract_mesh(field.sdf, field.lower_m, field.upper_m, resolution, device=device, progress=True)
     click.echo(f"wrote {export_mesh(mesh, out)} ({len(mesh.faces)} faces)")
 
 
@@ -336,8 +357,9 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
+@_device_option()
 @_one_line_errors
-def demo(out: Path, scene_name: str, radar_name: str, quick: bool):
+def demo(out: Path, scene_name: str, radar_name: str, quick: bool, device: str):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines.
@@ -350,7 +372,7 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool):
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
     from .report import write_report
 
-    result = run_demo(out, settings, log=click.echo)
+    result = run_demo(out, settings, device=device, log=click.echo)
     click.echo(metrics_table(result))
     click.echo(f"total {result.timings_s['total_s']:.0f} s; every artefact and metrics.json are in {out}")
     click.echo(f"report (open in a browser): {write_report(out)}")

@@ -28,11 +28,14 @@ from .random_scenes import random_scene_spec
 __all__ = ["simulate_scene_file", "simulate_dataset"]
 
 
-def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, threads: int) -> dict:
+def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, threads: int,
+                        device: str = "auto") -> dict:
     """Write ``folder``/name.toml (random scene ``seed``) and name.h5 (its measurements by
-    the radar, simulation seed ``seed``); the dataset row. Never raises: a failure is the row."""
+    the radar, simulation seed ``seed``, on ``device`` as the worker resolves it); the dataset
+    row. Never raises: a failure is the row."""
     import torch
 
+    from .device import resolve_device
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate, write_measurements
     from .scene import load_scene
 
@@ -50,7 +53,7 @@ def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, thre
         scene, radar = load_scene(scene_path), load_radar(radar_name)
         check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=radar_name)
         check_materials_in_band(scene, radar, source=str(scene_path))
-        write_measurements(data_path, simulate(scene, radar, seed=seed))
+        write_measurements(data_path, simulate(scene, radar, seed=seed, device=resolve_device(device)))
         row["status"] = "done"
     except Exception as exc:  # noqa: BLE001 - one failed scene is a row, not the end of the dataset
         row.update(status="failed", error=error_line(exc))
@@ -59,12 +62,13 @@ def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, thre
 
 
 def simulate_dataset(count: int, out, *, radar: str = "near-77g", base_seed: int = 0, workers: int = 1,
-                     ray_address: str | None = None, log: Callable[[str], None] = print) -> list[dict]:
+                     ray_address: str | None = None, device: str = "auto",
+                     log: Callable[[str], None] = print) -> list[dict]:
     """Simulate ``count`` random scenes into folder ``out``; writes dataset.json; the rows."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     threads = threads_per_worker(workers)
-    tasks = [(f"scene-{i:05d}", base_seed + i, radar, str(out), threads) for i in range(count)]
+    tasks = [(f"scene-{i:05d}", base_seed + i, radar, str(out), threads, device) for i in range(count)]
     rows = map_tasks(simulate_scene_file, tasks, workers=workers, ray_address=ray_address, cpus_per_task=threads,
                      on_result=lambda i, row: log(f"{row['name']}: {row['status']} {row['error']}".rstrip()))
     with atomic_path(out / "dataset.json") as tmp:

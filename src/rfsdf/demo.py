@@ -36,6 +36,7 @@ import torch
 
 from .atomic import atomic_path
 from .baseline import best_threshold_mesh, detection_mesh
+from .device import resolve_device
 from .errors import RfsdfError
 from .geometry import Grid
 from .jsonio import to_json
@@ -135,14 +136,20 @@ def _claim(out: Path, settings: DemoSettings) -> None:
         tmp.write_text(to_json(wanted))
 
 
-def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str], None] = print,
-             progress: bool = True) -> DemoResult:
-    """Run the pipeline into folder ``out``; returns (and writes as metrics.json) the results."""
+def run_demo(out, settings: DemoSettings = DemoSettings(), *, device: str = "auto",
+             log: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
+    """Run the pipeline into folder ``out``; returns (and writes as metrics.json) the results.
+
+    ``device`` (auto, cpu, cuda) runs every stage there, the fit included (it overrides the
+    settings' ``train.device``); it is not a setting of the run: a demo resumes on any device.
+    """
     out = Path(out)
+    device = resolve_device(device)
     scene, radar = load_scene(settings.scene), load_radar(settings.radar)
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
     check_materials_in_band(scene, radar, source=settings.scene)
     config = ReconConfig.model_validate(settings.recon)
+    config = config.model_copy(update={"train": config.train.model_copy(update={"device": str(device)})})
     _claim(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -161,20 +168,20 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
         measurements = read_measurements(out / "measurements.h5")
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                progress=progress)
+                                device=device, progress=progress)
         write_measurements(out / "measurements.h5", measurements)
     lap("simulate_s")
 
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    log(f"matched filter on {grid.shape} voxels of {settings.voxel_m * 1e3:.1f} mm")
-    image = matched_filter(measurements, grid, progress=progress)
+    log(f"matched filter on {grid.shape} voxels of {settings.voxel_m * 1e3:.1f} mm ({device})")
+    image = matched_filter(measurements, grid, device=device, progress=progress)
     write_image(out / "image.h5", image)
     mf_power = image.power().numpy()
     plot_mip(mf_power, grid.lower_m, grid.upper_m, out / "image-mip.png", title="matched-filter power (mean over views)")
     lap("image_s")
 
     rc = config.render
-    clean = clean_image(measurements, grid, progress=progress)
+    clean = clean_image(measurements, grid, device=device, progress=progress)
     clean_power = clean.power.numpy()
     log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
         f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
@@ -191,9 +198,9 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
 
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=measurements.acquisition, occluder=scene.sdf))
-    neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
+    neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
     export_mesh(neural, out / "neural.ply")
-    warm = extract_mesh(fit.warm_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
+    warm = extract_mesh(fit.warm_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
     export_mesh(warm, out / "neural-warm-start.ply")
     methods = {"neural": MethodResult("GeRaF (neural)", score(neural)),
                "neural_warm_start": MethodResult("its warm start", score(warm))}
@@ -217,7 +224,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, log: Callable[[str
                                                "local_threshold": ic.local_threshold})
     lap("baselines_s")
 
-    plot_sdf_slices(fit.field.sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,
+    plot_sdf_slices(fit.field.cpu().sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,
                     title="neural SDF (black) against the true surfaces (dashed)")
     plot_training_curves([dataclasses.asdict(r) for r in fit.log], out / "training.png", title=f"GeRaF fit ({rc.renderer} renderer)")
     lap("figures_s")

@@ -57,6 +57,10 @@ class SurfaceSamples:
     area_m2: torch.Tensor
     object_index: torch.Tensor
 
+    def to(self, device) -> SurfaceSamples:
+        """The same samples on ``device``."""
+        return SurfaceSamples(*(t.to(device) for t in (self.points, self.normals, self.area_m2, self.object_index)))
+
 
 def _vec(v) -> torch.Tensor:
     return torch.as_tensor(v, dtype=torch.float64)

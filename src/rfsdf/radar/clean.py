@@ -83,28 +83,29 @@ def _window(grid: Grid, centre: int, radius: int) -> torch.Tensor:
 
 def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float = 0.3,
                stop_fraction: float = 0.05, max_components: int = 300, window_m: float = 0.03,
-               major_every: int = 50, method: str = "auto"):
+               major_every: int = 50, method: str = "auto", device=None):
     """CLEAN one view: (component indices (C,), amplitudes (C,) complex, residual image (N,) complex).
 
     The images are column-normalised MF images c_hat = A^H y / ||A||^2 on the voxel centres
     of ``grid``; ``window_m`` is the half-width of the minor cycle's PSF window [m]. The
     whole-grid images (dirty and major cycles) use the imaging ``method`` (see
-    :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact.
+    :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact. The images
+    live on ``device`` (None: CPU); what is returned is on the CPU.
     """
     if not 0 < gain <= 1:
         raise ValueError(f"CLEAN loop gain must be in (0, 1], got {gain}")
     acquisition = measurements.acquisition.view(view)
     op = SensingOperator(acquisition)
-    fast = imaging_method(acquisition, method) == "fast"
-    y = measurements.data[view:view + 1]
-    voxels = grid.points()
+    fast = imaging_method(acquisition, method, device) == "fast"
+    y = measurements.data[view:view + 1].to(device)
+    voxels = grid.points(device=device)
     norms = op.column_norms_sq(voxels)
     seen = norms > 0
     safe = torch.where(seen, norms, torch.ones_like(norms))
 
     def image(data, index=slice(None)):
         if fast and isinstance(index, slice):
-            back_projected = fast_adjoint(acquisition, data, voxels)[0]
+            back_projected = fast_adjoint(acquisition, data.cpu(), voxels.cpu())[0].to(voxels.device)
         else:
             back_projected = op.adjoint(data, voxels[index])
         return torch.where(seen[index], back_projected / safe[index], 0.0)
@@ -120,17 +121,17 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
             if float(residual[q].abs()) <= stop:
                 break
             amplitude = gain * residual[q]
-            window = _window(grid, q, radius)
-            unit = op.forward(voxels[q:q + 1], torch.ones(1, dtype=torch.complex64))
+            window = _window(grid, q, radius).to(voxels.device)
+            unit = op.forward(voxels[q:q + 1], torch.ones(1, dtype=torch.complex64, device=voxels.device))
             residual[window] -= amplitude * image(unit, window)
             indices.append(q)
             amplitudes.append(complex(amplitude))
             if len(indices) % major_every == 0:
                 # Exact residual from the residual data. A point of reflectivity a at q images
                 # to a at q (column normalisation), so a component's data are a * A_q.
-                c = torch.tensor(amplitudes, dtype=torch.complex64)
-                residual = image(y - op.forward(voxels[torch.tensor(indices)], c))
-    return torch.tensor(indices, dtype=torch.long), torch.tensor(amplitudes, dtype=torch.complex64), residual
+                c = torch.tensor(amplitudes, dtype=torch.complex64, device=voxels.device)
+                residual = image(y - op.forward(voxels[torch.tensor(indices, device=voxels.device)], c))
+    return torch.tensor(indices, dtype=torch.long), torch.tensor(amplitudes, dtype=torch.complex64), residual.cpu()
 
 
 def clean_image(measurements: Measurements, grid: Grid, *, progress: bool = False, **options) -> CleanResult:

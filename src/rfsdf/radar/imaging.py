@@ -29,12 +29,15 @@ IMAGING_METHODS = ("auto", "exact", "fast")
 FAST_MIN_FREQUENCIES = 32
 
 
-def imaging_method(acquisition: Acquisition, method: str = "auto") -> str:
-    """"exact" or "fast" for ``method`` in IMAGING_METHODS ("auto": fast from FAST_MIN_FREQUENCIES on)."""
+def imaging_method(acquisition: Acquisition, method: str = "auto", device=None) -> str:
+    """"exact" or "fast" for ``method`` in IMAGING_METHODS. "auto": fast from
+    FAST_MIN_FREQUENCIES on, on the CPU; on a GPU always exact (the fast kernel is a CPU
+    kernel, and the exact adjoint is GEMMs that a GPU runs faster than the CPU interpolates)."""
     if method not in IMAGING_METHODS:
         raise ValueError(f"unknown imaging method {method!r}; known: {', '.join(IMAGING_METHODS)}")
     if method == "auto":
-        return "fast" if acquisition.shape[3] >= FAST_MIN_FREQUENCIES else "exact"
+        on_cpu = device is None or torch.device(device).type == "cpu"
+        return "fast" if on_cpu and acquisition.shape[3] >= FAST_MIN_FREQUENCIES else "exact"
     return method
 
 _IMAGE_BYTES_PER_VOXEL = 8 + 4 + 8  # per view: complex64 image, float32 column norm, the division's temporary
@@ -75,13 +78,14 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
 
     ``method``: "exact" (the sensing operator's adjoint), "fast" (range-profile
     back-projection, :mod:`rfsdf.radar.fast_imaging`, relative error ~1e-3 at the default
-    ``oversampling``; CPU) or "auto" (:func:`imaging_method`).
+    ``oversampling``; CPU) or "auto" (:func:`imaging_method`). ``device``: where the exact
+    adjoint runs (None: CPU); the image comes back on the CPU.
     """
     require_image_memory(measurements.acquisition.shape[0], grid)
     op = SensingOperator(measurements.acquisition)
     points = grid.points(device=device)
     with torch.no_grad():
-        if imaging_method(measurements.acquisition, method) == "fast":
+        if imaging_method(measurements.acquisition, method, device) == "fast":
             numerator = fast_adjoint(measurements.acquisition, measurements.data, points.cpu(),
                                      oversampling=oversampling, progress=progress).to(points.device)
         else:

@@ -41,7 +41,8 @@ def surface_reflectivity(
     """Complex reflectivity (Q,) complex64 of surface samples seen from one view's Tx/Rx phase
     centres [m]: :func:`~rfsdf.radar.scattering.scatter` with the Fresnel coefficient of each
     sample's material at ``frequency_hz`` and the scene itself as the occluder."""
-    eps = torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in scene.objects], dtype=torch.complex128)
+    eps = torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in scene.objects],
+                       dtype=torch.complex128, device=points.device)
     sample_eps = eps[object_index]
     c = scatter(points.double(), normals.double(), area_m2.double(),
                 lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization),
@@ -57,7 +58,8 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     acq = acquisition
     return torch.stack([
         surface_reflectivity(scene, samples.points, samples.normals, samples.area_m2, samples.object_index,
-                             acq.tx_m[v].mean(0), acq.rx_m[v].mean(0), acq.center_frequency_hz, **scattering)
+                             acq.tx_m[v].mean(0).to(samples.points.device), acq.rx_m[v].mean(0).to(samples.points.device),
+                             acq.center_frequency_hz, **scattering)
         for v in progress_bar(range(acq.shape[0]), desc="scattering", enabled=progress)
     ])
 
@@ -72,20 +74,22 @@ def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tup
 def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, progress: bool = False,
+    shadows: bool = True, device=None, progress: bool = False,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
     The surface is sampled ``lambda / SAMPLES_PER_WAVELENGTH`` apart (``spacing_m``
     overrides; at most ``max_samples`` samples). Noise is added at ``radar.snr_db`` (None:
-    noise-free).
+    noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
+    drawn and the noise added on the CPU, so the data do not depend on the device beyond
+    float rounding.
     """
     acq = radar.acquisition()
     spacing = spacing_m or acq.wavelength_m / SAMPLES_PER_WAVELENGTH
-    samples = scene.sample_surface(spacing, seed=seed, max_samples=max_samples)
+    samples = scene.sample_surface(spacing, seed=seed, max_samples=max_samples).to(device or "cpu")
     c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
                             diffuse_weight=diffuse_weight, polarization=polarization, shadows=shadows)
-    y = SensingOperator(acq).forward(samples.points, c, progress=progress)
+    y = SensingOperator(acq).forward(samples.points, c, progress=progress).cpu()
     noise_std = None
     if radar.snr_db is not None:
         y, noise_std = add_noise(y, radar.snr_db, torch.Generator().manual_seed(seed + 1))

@@ -7,11 +7,11 @@ from .render import RENDERERS, CoherentRenderer
 from .sampling import data_voxel_probabilities, eikonal_points, sample_data_voxels
 from .schedules import SCHEDULES, constant, exponential_decay
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
-from .trainer import FitResult, Problem, StepRecord, Trainer, resolve_device
+from .trainer import FitResult, Problem, StepRecord, Trainer
 
 __all__ = [
     "ReconConfig", "load_recon_config", "DATA_LOSSES", "amplitude_loss", "power_loss", "eikonal_loss",
     "RENDERERS", "CoherentRenderer", "data_voxel_probabilities", "eikonal_points", "sample_data_voxels",
     "SCHEDULES", "exponential_decay", "constant", "SurfaceCandidates", "surface_candidates", "project_to_surface",
-    "Problem", "StepRecord", "FitResult", "Trainer", "resolve_device", "load_field", "read_checkpoint",
+    "Problem", "StepRecord", "FitResult", "Trainer", "load_field", "read_checkpoint",
 ]

@@ -84,8 +84,8 @@ def read_log(run_dir) -> list[dict[str, float]]:
         raise RfsdfError(f"{path}: not a readable log ({exc})") from None
 
 
-def load_field(run_dir) -> RadarField:
-    """The trained field of a run folder (from its checkpoint), on the CPU, in eval mode."""
+def load_field(run_dir, device="cpu") -> RadarField:
+    """The trained field of a run folder (from its checkpoint), on ``device``, in eval mode."""
     path = Path(run_dir) / CHECKPOINT_NAME
     if not path.is_file():
         raise RfsdfError(f"{run_dir}: no {CHECKPOINT_NAME}; is this a run folder from `rfsdf reconstruct`?")
@@ -95,4 +95,4 @@ def load_field(run_dir) -> RadarField:
         field.load_state_dict(state["field"])
     except (RuntimeError, KeyError, TypeError) as exc:
         raise RfsdfError(f"{path}: not a readable rfsdf checkpoint ({exc})") from None
-    return field.eval()
+    return field.to(device).eval()

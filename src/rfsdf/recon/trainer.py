@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 import torch
 
+from ..device import resolve_device
 from ..errors import RfsdfError
 from ..field import RadarField, levels_for
 from ..geometry import Grid
@@ -38,7 +39,7 @@ from .schedules import SCHEDULES
 from .surface import SurfaceCandidates
 from .warm_start import detection_threshold, warm_start
 
-__all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "resolve_device"]
+__all__ = ["Problem", "StepRecord", "FitResult", "Trainer"]
 
 
 @dataclass(frozen=True)
@@ -100,19 +101,10 @@ def _field_kwargs(grid: Grid, config: ReconConfig) -> dict:
                 reflectivity_width=fc.reflectivity_width, reflectivity_floor=fc.reflectivity_floor)
 
 
-def resolve_device(name: str) -> torch.device:
-    """'auto' (CUDA when torch sees a GPU), 'cpu' or 'cuda[:N]'; one clear error otherwise."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    try:
-        device = torch.device(name)
-    except RuntimeError:
-        raise RfsdfError(f"train.device: unknown device {name!r}; use auto, cpu or cuda") from None
-    if device.type == "cuda" and not torch.cuda.is_available():
-        raise RfsdfError(f"train.device: {name!r} asked for, but torch sees no CUDA GPU here; use auto or cpu")
-    if device.type not in ("cpu", "cuda"):
-        raise RfsdfError(f"train.device: {name!r} is not supported; use auto, cpu or cuda")
-    return device
+def _resumable(config: dict) -> dict:
+    """What a checkpoint must share with the config that resumes it: all but the device (a
+    fit started on a GPU may go on on a CPU)."""
+    return {**config, "train": {k: v for k, v in config["train"].items() if k != "device"}}
 
 
 class Trainer:
@@ -121,7 +113,7 @@ class Trainer:
     def __init__(self, problem: Problem, config: ReconConfig, run_dir, *, progress: bool = False):
         self.problem, self.config, self.run_dir = problem, config, Path(run_dir)
         self.progress = progress
-        self.device = resolve_device(config.train.device)
+        self.device = resolve_device(config.train.device, "train.device")
         self.field_kwargs = _field_kwargs(problem.grid, config)
         with torch.random.fork_rng():
             torch.manual_seed(config.train.seed)
@@ -168,7 +160,7 @@ class Trainer:
     def load(self) -> None:
         state = read_checkpoint(self.checkpoint_path, self.device)
         try:
-            if state["config"] != self.config.model_dump():
+            if _resumable(state["config"]) != _resumable(self.config.model_dump()):
                 raise RfsdfError(f"{self.checkpoint_path}: the checkpoint was made with another config; "
                                  "resume with the run's own config.toml")
             if state["data_digest"] != self.problem.digest() or state["field_kwargs"] != self.field_kwargs:
@@ -202,7 +194,8 @@ class Trainer:
         grid = self.problem.grid
         clean = None
         if ic.method == "clean":
-            clean = self.problem.clean or clean_image(self.problem.measurements, grid, progress=self.progress)
+            clean = self.problem.clean or clean_image(self.problem.measurements, grid, device=self.device,
+                                                      progress=self.progress)
             power = clean.power.numpy()
         else:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()

@@ -1,0 +1,92 @@
+"""Each hot stage of `rfsdf demo` timed on the CPU and, where torch sees one, on a CUDA GPU.
+
+On the default demo (scene `objects`, radar `near-77g`, 6 mm grid): the simulation
+(scattering with shadows + A c over the surface samples), the exact matched filter of every
+view, CLEAN of one view, a fit step (fit settings as the demo's, warm start skipped; the
+seconds per step the trainer measures), and the SDF network evaluated on a 128^3 grid for
+marching cubes. Each stage runs once to warm up (CUDA kernels, numba) and is then timed;
+`speedup` is CPU seconds / GPU seconds in the same run. Without a GPU the JSON says so and
+holds the CPU figures only.
+
+Usage: python benchmarks/devices.py [--out benchmarks/results/devices.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+from rfsdf.demo import DemoSettings
+from rfsdf.device import resolve_device
+from rfsdf.geometry import Grid
+from rfsdf.jsonio import to_json
+from rfsdf.mesh import evaluate_on_grid
+from rfsdf.radar import load_radar, matched_filter, simulate
+from rfsdf.radar.clean import clean_view
+from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.scene import load_scene
+
+FIT_STEPS = 4
+
+
+def _seconds(function, device: torch.device) -> float:
+    """Wall time of a second call of ``function`` (the first warms up), synchronised."""
+    function()
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+    start = time.perf_counter()
+    function()
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+    return round(time.perf_counter() - start, 3)
+
+
+def stage_seconds(device: torch.device) -> dict[str, float]:
+    """Seconds per stage on ``device`` (the demo's scene, radar and grid)."""
+    settings = DemoSettings()
+    scene, radar = load_scene(settings.scene), load_radar(settings.radar)
+    measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples)
+    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
+    config = ReconConfig.model_validate({"init": {"method": "sphere"},
+                                         "train": {"steps": FIT_STEPS, "device": str(device)}})
+
+    def fit():
+        with tempfile.TemporaryDirectory() as folder:
+            return Trainer(Problem(measurements, grid), config, folder).fit()
+
+    fit()  # warm-up
+    fitted = fit()
+    extent = max(u - lo for lo, u in zip(scene.lower_m, scene.upper_m))
+    mesh_grid = Grid.from_voxel(scene.lower_m, scene.upper_m, float(extent) / 128)  # the demo's mesh resolution
+    return {
+        "simulate_s": _seconds(lambda: simulate(scene, radar, seed=settings.seed, device=device,
+                                                max_samples=settings.max_surface_samples), device),
+        "matched_filter_s": _seconds(lambda: matched_filter(measurements, grid, method="exact", device=device), device),
+        "clean_one_view_s": _seconds(lambda: clean_view(measurements, 0, grid, method="exact", device=device), device),
+        "fit_step_s": round(fitted.seconds_per_step, 3),
+        "sdf_on_128_grid_s": _seconds(lambda: evaluate_on_grid(fitted.field.sdf, mesh_grid, device=device), device),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/devices.json"))
+    args = parser.parse_args()
+    result: dict = {"threads": torch.get_num_threads(), "cpu": stage_seconds(torch.device("cpu"))}
+    if torch.cuda.is_available():
+        cuda = resolve_device("cuda")
+        result.update(gpu=torch.cuda.get_device_name(cuda), cuda=stage_seconds(cuda))
+        result["speedup"] = {k: round(result["cpu"][k] / max(v, 1e-9), 1) for k, v in result["cuda"].items()}
+    else:
+        result.update(gpu=None, cuda=None, note="torch sees no CUDA GPU on this machine: CPU figures only")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(to_json(result))
+    print(to_json(result))
+
+
+if __name__ == "__main__":
+    main()
