@@ -5,6 +5,7 @@ a fit step.
 
 Usage: python benchmarks/quality.py [--scene S] [--radar R] [--out benchmarks/results/quality-SCENE-RADAR.json]
        [--recon '{"train": {"geometry_delay": 0}}']   (reconstruction settings over the defaults)
+       [--voxel-mm 4]   (image voxel edge; the default is the demo's)
 """
 
 from __future__ import annotations
@@ -25,10 +26,12 @@ def main() -> None:
     parser.add_argument("--radar", default=DemoSettings.radar)
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--recon", type=json.loads, default={}, help="ReconConfig overrides (JSON tables).")
+    parser.add_argument("--voxel-mm", type=float, default=DemoSettings.voxel_m * 1e3, help="image voxel edge [mm]")
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/quality-{Path(args.scene).stem}-{Path(args.radar).stem}.json")
 
-    settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar, recon=args.recon)
+    settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar, recon=args.recon,
+                                   voxel_m=args.voxel_mm * 1e-3)
     with tempfile.TemporaryDirectory() as folder:
         result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)
