@@ -247,6 +247,20 @@ def test_a_run_resumes_on_another_device_but_not_with_other_settings(sphere_data
         Trainer(problem, _config(steps=6, lr=2e-3), tmp_path / "run").fit(resume=True)
 
 
+def test_the_data_cells_anneal_from_coarse_to_fine_once_f_moves(sphere_data, tmp_path):
+    _, data = sphere_data
+    config = _config(steps=10, geometry_delay=0.2)
+    config = ReconConfig.model_validate({**config.model_dump(), "sampling": {
+        **config.sampling.model_dump(), "cell_voxels": 1, "cell_voxels_start": 4}})
+    trainer = Trainer(Problem(data, _grid(10)), config, tmp_path / "run")
+    sizes = []
+    for step in range(10):
+        trainer.step = step
+        sizes.append(trainer.cell_size())
+    assert sizes[:3] == [4, 4, 4] and sizes[-1] == 1 and sizes == sorted(sizes, reverse=True)
+    assert Trainer(Problem(data, _grid(10)), _config(), tmp_path / "b").cell_size() == 2  # unset: constant
+
+
 def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(sphere_data, tmp_path, monkeypatch):
     _, data = sphere_data
     trainer = Trainer(Problem(data, _grid(10)), _config(), tmp_path / "run")

@@ -93,3 +93,32 @@ def test_encoding_levels_quick_run_is_sane(results):
     r = results["encoding-levels"]["result"]
     assert r["suggested_levels"] == 4  # ceil(log2(120 mm / 8 mm))
     assert all(0 < e < 20 for e in r["small_error_mm"] + r["large_error_mm"])
+
+
+def test_ambiguity_one_view_cannot_tell_the_family_apart_and_more_views_can(results):
+    r = results["ambiguity"]["result"]
+    assert r["view_counts"] == [1, 4]
+    one, four = r["contrast"]
+    assert one < 3 and four > 4 * one  # one view: the family is about as good as the truth
+
+
+def test_sdf_normals_beat_occupancy_normals_on_the_same_budget(results):
+    r = results["occupancy-vs-sdf"]["result"]
+    assert r["sdf_normal_error_deg"][0] < r["occupancy_normal_error_deg"][0]
+    assert r["sdf_chamfer_mm"][0] < 1  # both learn the ball; the SDF's normals are the better
+    assert r["occupancy_chamfer_mm"][0] < 2
+
+
+def test_eikonal_sampling_uniform_points_keep_the_box_a_distance(results):
+    r = results["eikonal-sampling"]["result"]
+    assert r["near_shares"] == [0.0, 1.0]
+    uniform, near = r["eikonal_box"]
+    assert uniform < near  # near-surface points alone leave the rest of the box free
+    assert all(0 < s < 5 for s in r["seconds_per_step"])
+
+
+def test_sigma_annealing_fits_move_the_ball_towards_the_truth(results):
+    r = results["sigma-annealing"]["result"]
+    for name, curves in r["radius_error_mm"].items():
+        start = r["start_errors_mm"][0]
+        assert curves[0][-1] < start, name  # every schedule shrinks a ball started too large

@@ -94,6 +94,9 @@ class SamplingConfig(StrictModel):
     views_per_step: PositiveInt = 6
     data_batch: PositiveInt = 4096  # data voxels per step
     cell_voxels: PositiveInt = 2  # compare RMS amplitudes over cubes of this many voxels per edge
+    # coarse to fine: cubes of this edge when f starts to move, shrinking linearly to
+    # cell_voxels at the last step (None: cell_voxels throughout; study "sigma-annealing")
+    cell_voxels_start: PositiveInt | None = None
     data_focus: float = Field(0.5, ge=0, le=1, description="share of data voxels drawn by MF amplitude")
     eikonal_batch: PositiveInt = 4096
     eikonal_near: float = Field(0.5, ge=0, le=1, description="share of Eikonal points near the zero set")

@@ -212,6 +212,15 @@ class Trainer:
         values = torch.cat([self.field.sdf(chunk) for chunk in points.split(1 << 16)])
         self.renderer.refresh(self.field.sdf, values, self.generator)
 
+    def cell_size(self) -> int:
+        """Edge [voxels] of the cubes the data loss compares at this step: ``cell_voxels``, or
+        annealed from ``cell_voxels_start`` (once f moves) down to it at the last step."""
+        sampling, delay = self.config.sampling, self.config.train.geometry_delay_steps
+        if sampling.cell_voxels_start is None:
+            return sampling.cell_voxels
+        fraction = min(max((self.step - delay) / max(self.config.train.steps - 1 - delay, 1), 0.0), 1.0)
+        return round(sampling.cell_voxels_start + fraction * (sampling.cell_voxels - sampling.cell_voxels_start))
+
     def loss_terms(self) -> dict[str, torch.Tensor]:
         """Data and Eikonal losses for one step (draws from the generator). While f is frozen
         (the first ``train.geometry_delay_steps``) no graph is built through it: those steps
@@ -219,7 +228,7 @@ class Trainer:
         cfg = self.config
         views = torch.randperm(self.renderer.num_views, generator=self.generator)[:cfg.sampling.views_per_step]
         views = views.sort().values.to(self.device)
-        size = cfg.sampling.cell_voxels
+        size = self.cell_size()
         corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
         voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
         frozen = self.step < cfg.train.geometry_delay_steps

@@ -2,11 +2,14 @@
 (`rfsdf study NAME`) with a figure and its numbers. One module per study; see
 :mod:`rfsdf.studies.base` for the shape every study has."""
 
-from . import eikonal, eikonal_1d, encoding_levels, geometric_init, loss_gradient, marching_cubes, permittivity, sphere_tracing
+from . import (
+    ambiguity, eikonal, eikonal_1d, eikonal_sampling, encoding_levels, geometric_init, loss_gradient, marching_cubes,
+    occupancy_vs_sdf, permittivity, sigma_annealing, sphere_tracing,
+)
 from .base import run_study
 
 _MODULES = (sphere_tracing, eikonal, eikonal_1d, encoding_levels, geometric_init, loss_gradient, marching_cubes,
-            permittivity)
+            permittivity, ambiguity, occupancy_vs_sdf, eikonal_sampling, sigma_annealing)
 STUDIES = {module.NAME: module for module in _MODULES}
 
 __all__ = ["STUDIES", "run_study"]
