@@ -122,3 +122,13 @@ def test_sigma_annealing_fits_move_the_ball_towards_the_truth(results):
     for name, curves in r["radius_error_mm"].items():
         start = r["start_errors_mm"][0]
         assert curves[0][-1] < start, name  # every schedule shrinks a ball started too large
+
+
+def test_super_resolution_psf_follows_c_over_2b_and_the_fit_beats_the_threshold(results):
+    points = results["super-resolution"]["result"]["sweeps"]["bandwidth_ghz"]
+    assert [p["bandwidth_ghz"] for p in points] == [1.0, 4.0]
+    for p in points:
+        assert 0.7 < p["range_psf_mm"] / p["range_resolution_mm"] < 1.0  # -3 dB of sinc^2: 0.886 c/2B
+        assert 0.6 < p["cross_psf_mm"] / p["cross_resolution_mm"] < 1.3
+        assert p["fit_chamfer_mm"] < p["start_chamfer_mm"] and 2 * p["fit_chamfer_mm"] < p["mf_chamfer_mm"]
+    assert points[0]["range_psf_mm"] > 3 * points[1]["range_psf_mm"]

@@ -19,13 +19,13 @@ GRID = Grid((-0.06,) * 3, (0.06,) * 3, (16,) * 3)
 SIX_VIEWS = ((4, 0.0), (1, 1.4), (1, -1.4))  # (views, elevation [rad]) per ring
 
 
-def small_radar(*, bandwidth_hz: float = 4e9, array_m: float = 0.04, snr_db: float | None = 40.0,
-                rings=SIX_VIEWS, subcarriers: int = 8) -> Radar:
-    """A 79 GHz OFDM radar with a boundary array (3 elements per edge) 0.3 m from the centre."""
+def small_radar(*, bandwidth_hz: float = 4e9, array_m: float = 0.04, elements_per_edge: int = 3,
+                snr_db: float | None = 40.0, rings=SIX_VIEWS, subcarriers: int = 8) -> Radar:
+    """A 79 GHz OFDM radar with a boundary array 0.3 m from the centre."""
     return Radar.from_spec(RadarSpec.model_validate({
         "name": "small", "waveform": {"kind": "ofdm", "carrier_hz": 79e9, "bandwidth_hz": bandwidth_hz,
                                       "subcarriers": subcarriers},
-        "array": {"kind": "boundary", "size_m": array_m, "elements_per_edge": 3},
+        "array": {"kind": "boundary", "size_m": array_m, "elements_per_edge": elements_per_edge},
         "views": {"distance_m": 0.3, "azimuths_per_ring": [n for n, _ in rings],
                   "elevations_rad": [e for _, e in rings]},
         "noise": {"snr_db": snr_db}}))
