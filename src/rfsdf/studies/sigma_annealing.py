@@ -37,7 +37,7 @@ SCHEDULES = {"fine (1 voxel)": (1, None), "coarse (4 voxels)": (4, None), "annea
 
 @dataclass(frozen=True)
 class Settings:
-    start_errors_mm: tuple[float, ...] = (2.0, 4.0, 6.0)
+    start_errors_mm: tuple[float, ...] = (0.0, 2.0, 4.0, 6.0)
     steps: int = 60
     seed: int = 0
 
