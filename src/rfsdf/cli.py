@@ -283,7 +283,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     _refuse_overwriting_inputs(out, data, image_path, config_path)
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
     if device is not None:
-        config = config.model_copy(update={"train": config.train.model_copy(update={"device": str(_device(device))})})
+        config = config.on_device(_device(device))
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)

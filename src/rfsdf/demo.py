@@ -149,7 +149,7 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, device: str = "aut
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
     check_materials_in_band(scene, radar, source=settings.scene)
     config = ReconConfig.model_validate(settings.recon)
-    config = config.model_copy(update={"train": config.train.model_copy(update={"device": str(device)})})
+    config = config.on_device(device)
     _claim(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()

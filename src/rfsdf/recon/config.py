@@ -139,6 +139,10 @@ class ReconConfig(StrictModel):
     sampling: SamplingConfig = SamplingConfig()
     train: TrainConfig = TrainConfig()
 
+    def on_device(self, device) -> ReconConfig:
+        """The same settings with ``train.device`` set to ``device`` (a name or a torch.device)."""
+        return self.model_copy(update={"train": self.train.model_copy(update={"device": str(device)})})
+
 
 def load_recon_config(path=None) -> ReconConfig:
     """Defaults, or the defaults overridden by the TOML file at ``path``."""
