@@ -6,8 +6,9 @@ import torch
 
 from rfsdf.geometry import Grid
 from rfsdf.radar import (
-    Acquisition, Measurements, SensingOperator, load_radar, matched_filter, write_image, write_measurements,
+    Acquisition, Measurements, SensingOperator, matched_filter, write_image, write_measurements,
 )
+from rfsdf.studies.ball_fit import small_radar
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -18,14 +19,10 @@ def rng():
 
 
 @pytest.fixture(scope="session")
-def tiny_radar(tmp_path_factory):
-    """Six views around the origin, a 4 cm boundary array (6 Tx, 6 Rx), 8 frequencies."""
-    path = tmp_path_factory.mktemp("radar") / "tiny.toml"
-    path.write_text('name = "tiny"\n[waveform]\nkind = "ofdm"\ncarrier_hz = 79e9\nbandwidth_hz = 4e9\nsubcarriers = 8\n'
-                    '[array]\nkind = "boundary"\nsize_m = 0.04\nelements_per_edge = 3\n'
-                    '[views]\ndistance_m = 0.3\nazimuths_per_ring = [4, 1, 1]\nelevations_rad = [0.0, 1.4, -1.4]\n'
-                    '[noise]\nsnr_db = 40.0\n')
-    return load_radar(path)
+def tiny_radar():
+    """Six views around the origin, a 4 cm boundary array (6 Tx, 6 Rx), 8 frequencies: the fit
+    studies' radar."""
+    return small_radar()
 
 
 @pytest.fixture

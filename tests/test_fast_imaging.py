@@ -72,6 +72,16 @@ def test_imaging_method_auto_and_unknown_names(small_acquisition):
         imaging_method(small_acquisition, "sar")
 
 
+def test_the_cli_offers_exactly_the_imaging_methods():
+    """The CLI lists the names itself (importing the imaging module would load torch on every
+    command's start): the two lists must not drift apart."""
+    from rfsdf.cli import image_cmd
+    from rfsdf.radar.imaging import IMAGING_METHODS
+
+    method = next(p for p in image_cmd.params if p.name == "method")
+    assert tuple(method.type.choices) == IMAGING_METHODS
+
+
 def test_range_profile_of_one_point_peaks_at_its_path_length():
     from rfsdf.radar.fast_imaging import range_profiles
 
