@@ -105,3 +105,19 @@ def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):
     for ball in result.objects.values():  # each ball shows the radar the same cap
         assert ball.observed_fraction == pytest.approx((1 - math.cos(tolerance)) / 2, rel=0.15)
         assert ball.observed_recall > 0.99
+
+
+def test_accuracy_is_split_by_whether_the_nearest_true_surface_is_observed(tmp_path):
+    """The left ball is reconstructed exactly and observed; the right one 3 mm too large and
+    not observed: the split puts ~0 mm (the meshing error) near the seen surface and ~3 mm near the unseen one."""
+    from rfsdf.geometry import Union
+    from rfsdf.metrics import evaluate_scene
+
+    scene = _two_ball_scene(tmp_path)
+    both = Union(Sphere(0.02, (-0.05, 0.0, 0.0)), Sphere(0.023, (0.05, 0.0, 0.0)))
+    mesh = extract_mesh(both, (-0.1,) * 3, (0.1,) * 3, 128)
+    result = evaluate_scene(mesh, scene, observed=lambda p, n: p[:, 0] < 0, samples=20_000)
+    assert result.accuracy_near_observed_mm < 0.5  # the mesh's own error at 1.6 mm cells
+    assert result.accuracy_near_unobserved_mm == pytest.approx(3.0, abs=0.2)
+    assert result.as_dict()["accuracy_near_unobserved_mm"] == result.accuracy_near_unobserved_mm
+    assert evaluate_scene(mesh, scene, samples=2_000).accuracy_near_observed_mm is None

@@ -245,7 +245,9 @@ _ROWS = (("Chamfer-L1 [mm]", "full", "chamfer_l1_mm", ".2f"), ("F-score @ 5 mm",
          ("precision", "full", "precision", ".3f"), ("recall", "full", "recall", ".3f"),
          ("normal consistency", "full", "normal_consistency", ".3f"),
          ("Hausdorff-95 [mm]", "full", "hausdorff95_mm", ".1f"), ("volumetric IoU", "full", "iou", ".3f"),
-         ("observed Chamfer [mm]", "observed", "chamfer_l1_mm", ".2f"), ("observed F-score", "observed", "fscore", ".3f"))
+         ("observed Chamfer [mm]", "observed", "chamfer_l1_mm", ".2f"), ("observed F-score", "observed", "fscore", ".3f"),
+         ("accuracy near seen [mm]", None, "accuracy_near_observed_mm", ".2f"),
+         ("accuracy near unseen [mm]", None, "accuracy_near_unobserved_mm", ".2f"))
 
 
 def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
@@ -253,7 +255,8 @@ def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
     result as written to metrics.json (``DemoResult.as_dict()``): full surface, observed
     surface, then the recall of each object by name."""
     methods = list(result["methods"].values())
-    rows = [(label, [_cell((m[part] or {}).get(key), fmt) for m in methods]) for label, part, key, fmt in _ROWS]
+    rows = [(label, [_cell((m if part is None else m[part] or {}).get(key), fmt) for m in methods])
+            for label, part, key, fmt in _ROWS]
     rows += [(f"recall {name}", [_cell(m["objects"][name]["recall"], ".2f") for m in methods])
              for name in methods[0]["objects"]]
     return [m["label"] for m in methods], rows

@@ -115,10 +115,16 @@ class SceneMetrics:
     observed: MeshMetrics | None
     observed_fraction: float | None
     objects: dict[str, ObjectMetrics]
+    # accuracy split by what the data show: mean distance [mm] to the truth of the predicted
+    # samples whose nearest true sample is observed, and of the others (surface no view sees)
+    accuracy_near_observed_mm: float | None = None
+    accuracy_near_unobserved_mm: float | None = None
 
     def as_dict(self) -> dict:
         return {"full": self.full.as_dict(), "observed": None if self.observed is None else self.observed.as_dict(),
                 "observed_fraction": self.observed_fraction,
+                "accuracy_near_observed_mm": self.accuracy_near_observed_mm,
+                "accuracy_near_unobserved_mm": self.accuracy_near_unobserved_mm,
                 "objects": {name: {**asdict(m), "found": m.found} for name, m in self.objects.items()}}
 
 
@@ -167,11 +173,15 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
     cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
     full = with_scene_iou(_scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m), mesh, scene, seed=seed)
     observed_metrics = observed_fraction = seen = None
+    split = {}
     if observed is not None:
         seen = np.asarray(observed(torch.as_tensor(pb), torch.as_tensor(nb)), bool)
         observed_fraction = float(seen.mean())
         if seen.any():
             observed_metrics = _scored(d_ab, d_ba[seen], cos_ab, cos_ba[seen], threshold_m)
+        near_seen = seen[i_ab]
+        split = {f"accuracy_near_{key}_mm": float(d_ab[mask].mean() * 1e3) if mask.any() else None
+                 for key, mask in (("observed", near_seen), ("unobserved", ~near_seen))}
     objects = {}
     nearest_owner = owner[i_ab]
     for index, obj in enumerate(scene.objects):
@@ -184,4 +194,4 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
             observed_recall=float((d_ba[own & seen] < threshold_m).mean()) if seen is not None and seen[own].any()
             else None,
             bias_mm=_median_signed_mm(obj.sdf, pa[mine]) if mine.any() else None)
-    return SceneMetrics(full, observed_metrics, observed_fraction, objects)
+    return SceneMetrics(full, observed_metrics, observed_fraction, objects, **split)
