@@ -35,7 +35,7 @@ def main() -> None:
     demo, scene, grid = data.settings, data.scene, data.image.grid
     # The truth replaces the image warm start: method "sphere" makes fit() skip its own.
     config = ReconConfig.model_validate({**args.recon, "init": {**args.recon.get("init", {}), "method": "sphere"}})
-    ic = ReconConfig().init
+    ic = config.init
 
     def score(field) -> dict:
         mesh = extract_mesh(field.sdf, scene.lower_m, scene.upper_m, demo.mesh_resolution)
@@ -44,7 +44,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as run:
         trainer = Trainer(Problem(data.measurements, grid), config, run)
         fit_to_image(trainer.field, grid.lower_m, grid.upper_m, scene.sdf, None, steps=3 * ic.steps, lr=ic.lr,
-                     batch=ic.batch, eikonal_weight=config.loss.eikonal_weight, generator=torch.Generator().manual_seed(0))
+                     batch=ic.batch, eikonal_weight=ic.eikonal_weight, generator=torch.Generator().manual_seed(0))
         start = score(trainer.field)
         fit = trainer.fit()
         end = score(fit.field)

@@ -21,16 +21,15 @@ from rfsdf.recon import (
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
 from rfsdf.recon.warm_start import fit_to_image
 from rfsdf.scene import load_scene
+from rfsdf.studies.ball_fit import ball_data
 
 RADIUS = 0.02  # the `sphere` preset: a 2 cm metal ball at the origin
 
 
 @pytest.fixture(scope="module")
 def sphere_data(tiny_radar):
-    """The ball sampled at lambda/6: at the simulator's default lambda/3 the sampling speckle
-    alone moves the best radius by about a millimetre on this small radar."""
-    scene = load_scene("sphere")
-    return scene, simulate(scene, tiny_radar, seed=0, spacing_m=tiny_radar.acquisition().wavelength_m / 6)
+    """The `sphere` scene and its data, the ball sampled at lambda/6 (``ball_data``)."""
+    return load_scene("sphere"), ball_data(tiny_radar, seed=0)
 
 
 class _Ball(torch.nn.Module):
@@ -184,6 +183,24 @@ def test_warm_start_points_near_the_surface_fit_a_small_object():
         with torch.no_grad():
             error[share] = float(field.sdf(surface).abs().mean())
     assert error[0.25] < 0.5 * error[0.0] and error[0.25] < 0.0025, error
+
+
+def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_data, tmp_path, monkeypatch):
+    """The warm start regresses a rough thresholded image and wants a firmer Eikonal term than
+    the fit (README, "Quality on the default demo"): ``[init]`` and ``[loss]`` each set one."""
+    import rfsdf.recon.trainer as trainer_module
+
+    _, data = sphere_data
+    settings = _config(steps=2, geometry_delay=0.0).model_dump()
+    settings["init"].update(method="mf", eikonal_weight=0.03)
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
+    trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / "run")
+    trainer.warm_start()
+    trainer.refresh_surface()
+    terms = {key: float(value.detach()) for key, value in trainer.loss_terms().items()}
+    assert seen["eikonal_weight"] == 0.03 and terms["eikonal"] > 0
+    assert terms["loss"] == pytest.approx(terms["data"] + 0.1 * terms["eikonal"], rel=1e-5)
 
 
 def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):

@@ -43,6 +43,9 @@ class InitConfig(StrictModel):
     # share of each batch drawn within a voxel of the target's zero set: with a uniform batch
     # the 2.5 cm metal ball got ~30 points a step and half its surface (README, Quality)
     near_share: float = Field(0.25, ge=0, le=1)
+    # the warm start's own Eikonal weight: the image it fits is rough, and at the fit's
+    # lower weight the warm start got worse (README, "Quality on the default demo")
+    eikonal_weight: NonNegativeFloat = 0.01
 
     @field_validator("threshold", mode="before")
     @classmethod

@@ -203,7 +203,7 @@ class Trainer:
                    local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share,
-                   eikonal_weight=self.config.loss.eikonal_weight, generator=self.generator, progress=self.progress)
+                   eikonal_weight=ic.eikonal_weight, generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:
