@@ -4,6 +4,7 @@ a tiny fit, checkpoints and registries."""
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -19,7 +20,7 @@ from rfsdf.recon import (
     surface_candidates,
 )
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
-from rfsdf.recon.warm_start import fit_to_image
+from rfsdf.recon.warm_start import detection_target, fit_to_image
 from rfsdf.scene import load_scene
 from rfsdf.studies.ball_fit import ball_data
 
@@ -183,6 +184,19 @@ def test_warm_start_points_near_the_surface_fit_a_small_object():
         with torch.no_grad():
             error[share] = float(field.sdf(surface).abs().mean())
     assert error[0.25] < 0.5 * error[0.0] and error[0.25] < 0.0025, error
+
+
+def test_the_detection_target_closes_two_glints_of_one_object_into_one_volume():
+    """Two bright 3-voxel cubes one voxel apart: without closing two inside sets (the gap
+    outside), closed over 2 voxels one (the gap inside); far voxels are outside by their distance."""
+    grid = Grid((-0.06,) * 3, (0.06,) * 3, (20,) * 3)  # 6 mm voxels
+    power = np.zeros(grid.shape)
+    power[6:9, 9:12, 9:12] = power[10:13, 9:12, 9:12] = 1.0
+    open_set = detection_target(power, grid, threshold=0.5, local_threshold=0.5, window_m=0.018, closing_m=0.0)
+    closed = detection_target(power, grid, threshold=0.5, local_threshold=0.5, window_m=0.018, closing_m=0.012)
+    assert open_set[8, 10, 10] < 0 and open_set[10, 10, 10] < 0 and open_set[9, 10, 10] > 0
+    assert closed[9, 10, 10] < 0
+    assert closed[0, 10, 10] == pytest.approx(0.006 * 6 - 0.003)  # 6 voxels from the set, boundary half a voxel out
 
 
 def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_data, tmp_path, monkeypatch):

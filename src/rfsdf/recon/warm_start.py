@@ -33,7 +33,8 @@ from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask
 from .losses import eikonal_loss
 
-__all__ = ["detection_threshold", "mask_signed_distance", "local_peak_amplitude", "fit_to_image", "warm_start"]
+__all__ = ["detection_threshold", "mask_signed_distance", "detection_target", "local_peak_amplitude", "fit_to_image",
+           "warm_start"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
 
@@ -110,6 +111,21 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     return residual
 
 
+def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
+                     closing_m: float) -> np.ndarray:
+    """(nx, ny, nz) float32 signed distance [m] (negative inside) to the detection set of the
+    image ``power``: :func:`detection_mask` with a local window of edge ``window_m`` [m],
+    closed morphologically by a ball of radius ``closing_m`` [m]. What f is regressed onto."""
+    voxel = float(np.max(grid.voxel_m))
+    inside = detection_mask(power, threshold=threshold, local_threshold=local_threshold,
+                            window_voxels=max(1, round(window_m / voxel)))
+    radius = round(closing_m / voxel)
+    if radius > 0:  # join the separate glints of one smooth object into one volume
+        ball = np.linalg.norm(np.mgrid[-radius:radius + 1, -radius:radius + 1, -radius:radius + 1], axis=0) <= radius
+        inside = ndimage.binary_closing(np.pad(inside, radius), structure=ball)[radius:-radius, radius:-radius, radius:-radius]
+    return mask_signed_distance(inside, grid)
+
+
 def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                near_share: float = 0.0, progress: bool = False) -> float:
@@ -119,12 +135,8 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
     window = max(1, round(window_m / float(np.max(grid.voxel_m))))
-    inside = detection_mask(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window)
-    radius = round(closing_m / float(np.max(grid.voxel_m)))
-    if radius > 0:  # join the separate glints of one smooth object into one volume
-        ball = np.linalg.norm(np.mgrid[-radius:radius + 1, -radius:radius + 1, -radius:radius + 1], axis=0) <= radius
-        inside = ndimage.binary_closing(np.pad(inside, radius), structure=ball)[radius:-radius, radius:-radius, radius:-radius]
-    signed = mask_signed_distance(inside, grid)
+    signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
+                              closing_m=closing_m)
     distance = torch.from_numpy(signed).to(device)
     peak = torch.from_numpy(local_peak_amplitude(power, window)).to(device)
     voxel = float(np.max(grid.voxel_m))
