@@ -15,9 +15,10 @@ regressed at the same time onto the local peak amplitude, so weak reflectors (wo
 drywall) start dim instead of being explained away by moving their surfaces.
 
 On the demo scene the local rule is what makes the start useful: marching cubes on the
-CLEAN image cut this way scores Chamfer-L1 7.0 mm (F 0.59), against 10.3 mm for the best
-global threshold of the same image and 9.7 mm for the best global threshold of the MF
-image (README, "Warm start").
+CLEAN image cut this way scores Chamfer-L1 5.91 mm (F 0.59), against 8.67 mm for the best
+global threshold of the same image and 9.72 mm for the best global threshold of the MF
+image (README, "Quality on the default demo"); ``benchmarks/detection_settings.py`` scores
+the closed target itself for other local thresholds and closings.
 """
 
 from __future__ import annotations
