@@ -72,3 +72,22 @@ def test_simulated_sphere_images_brightest_at_the_sphere():
     power = matched_filter(m1, grid).power()
     peak = grid.points()[power.argmax()]
     assert abs(peak.norm().item() - 0.02) < 0.012  # the return comes from the sphere's surface
+
+
+def test_in_front_of_ridges_marks_the_radar_side_half_of_a_range_blob():
+    """A blob 3 cm deep along z, centred at z = 0, seen by a view on +z: the voxels above the
+    ridge (nearer the radar) are marked, the ridge and the far half are not; a second view,
+    from the side, that sees nothing marks nothing."""
+    from rfsdf.radar.detection import in_front_of_ridges
+
+    grid = Grid((-0.06,) * 3, (0.06,) * 3, (20,) * 3)  # 6 mm voxels, centres at +-3 mm, ...
+    x, y, z = grid.points().double().numpy().T.reshape(3, *grid.shape)
+    blob = np.exp(-(x**2 + y**2) / (2 * 0.006**2) - z**2 / (2 * 0.015**2))
+    side = np.zeros(grid.shape)
+    front = in_front_of_ridges(np.stack([blob, side]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]), grid,
+                               threshold=0.06, local_threshold=0.5, window_voxels=5)
+    column = front[9, 9]  # the voxel column nearest the axis
+    assert column[z[9, 9] > 0.004].any() and not column[z[9, 9] < 0].any()
+    bright = blob[9, 9] >= 0.5
+    assert column[bright & (z[9, 9] > 0.004)].all()  # the blob's near half, down to the ridge
+    assert not front[np.abs(x) > 0.03].any()  # outside the blob nothing is marked

@@ -331,6 +331,7 @@ def test_detection_threshold_auto_is_the_clean_residual_floor_and_numbers_pass_t
         detection_threshold("auto", None)
     for bad, message in (({"threshold": 1.5}, 'init.threshold: must be "auto" or a number between 0 and 1'),
                          ({"threshold": "median"}, "init.threshold: must be"),
-                         ({"method": "mf", "threshold": "auto"}, 'init: threshold "auto" is the CLEAN residual floor')):
+                         ({"method": "mf", "threshold": "auto"}, 'init: threshold "auto" is the CLEAN residual floor'),
+                         ({"method": "mf", "carve_front": True}, "init: carve_front uses the per-view CLEAN images")):
         with pytest.raises(RfsdfError, match=message):
             validate(ReconConfig, {"init": bad}, "recon.toml")

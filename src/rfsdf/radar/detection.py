@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["amplitude_of", "detection_mask", "detection_level"]
+__all__ = ["amplitude_of", "detection_mask", "detection_level", "in_front_of_ridges"]
 
 
 def amplitude_of(power: np.ndarray) -> np.ndarray:
@@ -44,3 +44,33 @@ def detection_mask(power: np.ndarray, *, threshold: float, local_threshold: floa
                          f"{'no' if not inside.any() else 'every'} voxel; choose other init thresholds")
     return inside
 
+
+
+def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, grid, *, threshold: float,
+                       local_threshold: float, window_voxels: int) -> np.ndarray:
+    """(nx, ny, nz) bool: voxels in front of a range ridge of some view (range blur, not surface).
+
+    A glint images as a blob about a range resolution deep along the view's line of sight,
+    centred on the surface. A voxel is marked where, in some view v, it belongs to v's own
+    detection (:func:`detection_level` of v's power at ``threshold`` and ``local_threshold``)
+    and the amplitude one voxel further from v's array centre (``view_centres_m`` (V, 3) [m])
+    is larger: the ridge, where the surface is, still lies behind it. Removing these voxels
+    from a detection set cuts the half of each blob that stands in front of the seen face
+    (``benchmarks/detection_settings.py`` measures it on the demo).
+
+    per_view_power : (V, nx, ny, nz) per-view image power; grid : the images' Grid.
+    """
+    points = grid.points().double().numpy()  # (N, 3) voxel centres
+    voxel = np.asarray(grid.voxel_m, float)
+    front = np.zeros(grid.shape, bool)
+    for power, centre in zip(per_view_power, np.asarray(view_centres_m, float)):
+        amplitude = amplitude_of(power)
+        towards = centre - points
+        towards /= np.linalg.norm(towards, axis=1, keepdims=True)
+        behind = points - float(voxel.max()) * towards
+        index = ((behind - np.asarray(grid.lower_m, float)) / voxel - 0.5).T  # fractional voxel indices
+        further = ndimage.map_coordinates(amplitude, index, order=1, mode="nearest").reshape(grid.shape)
+        own = amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
+                                           window_voxels=window_voxels)
+        front |= own & (amplitude > 0) & (further > amplitude)
+    return front

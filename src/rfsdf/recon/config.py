@@ -46,6 +46,9 @@ class InitConfig(StrictModel):
     # the warm start's own Eikonal weight: the image it fits is rough, and at the fit's
     # lower weight the warm start got worse (README, "Quality on the default demo")
     eikonal_weight: NonNegativeFloat = 0.01
+    # remove from the detection the voxels in front of a view's range ridge (the blob's half
+    # that stands before the seen face; radar.detection.in_front_of_ridges); needs "clean"
+    carve_front: bool = False
 
     @field_validator("threshold", mode="before")
     @classmethod
@@ -60,6 +63,8 @@ class InitConfig(StrictModel):
     def _auto_needs_clean(self):
         if self.method == "mf" and self.threshold == "auto":
             raise ValueError('threshold "auto" is the CLEAN residual floor; with method = "mf" give a number')
+        if self.method == "mf" and self.carve_front:
+            raise ValueError('carve_front uses the per-view CLEAN images; it needs method = "clean"')
         return self
 
 

@@ -30,6 +30,7 @@ from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.clean import CleanResult, clean_image
+from ..radar.detection import in_front_of_ridges
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
 from .losses import DATA_LOSSES, eikonal_loss
@@ -199,10 +200,16 @@ class Trainer:
             power = clean.power.numpy()
         else:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
-        warm_start(self.field, power, grid, threshold=detection_threshold(ic.threshold, clean),
-                   local_threshold=ic.local_threshold,
+        threshold = detection_threshold(ic.threshold, clean)
+        exclude = None
+        if ic.carve_front:
+            window = max(1, round(ic.window_m / float(np.max(grid.voxel_m))))
+            exclude = in_front_of_ridges(clean.per_view_power.numpy(), self.problem.measurements.acquisition.tx_m.mean(1),
+                                         grid, threshold=threshold, local_threshold=ic.local_threshold,
+                                         window_voxels=window)
+        warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
-                   near_share=ic.near_share,
+                   near_share=ic.near_share, exclude=exclude,
                    eikonal_weight=ic.eikonal_weight, generator=self.generator, progress=self.progress)
 
     @torch.no_grad()

@@ -113,13 +113,16 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
 
 
 def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
-                     closing_m: float) -> np.ndarray:
+                     closing_m: float, exclude: np.ndarray | None = None) -> np.ndarray:
     """(nx, ny, nz) float32 signed distance [m] (negative inside) to the detection set of the
     image ``power``: :func:`detection_mask` with a local window of edge ``window_m`` [m],
-    closed morphologically by a ball of radius ``closing_m`` [m]. What f is regressed onto."""
+    less the voxels of ``exclude`` (bool, grid.shape; e.g. ``in_front_of_ridges``), closed
+    morphologically by a ball of radius ``closing_m`` [m]. What f is regressed onto."""
     voxel = float(np.max(grid.voxel_m))
     inside = detection_mask(power, threshold=threshold, local_threshold=local_threshold,
                             window_voxels=max(1, round(window_m / voxel)))
+    if exclude is not None:
+        inside &= ~exclude
     radius = round(closing_m / voxel)
     if radius > 0:  # join the separate glints of one smooth object into one volume
         ball = np.linalg.norm(np.mgrid[-radius:radius + 1, -radius:radius + 1, -radius:radius + 1], axis=0) <= radius
@@ -129,15 +132,15 @@ def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_t
 
 def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
-               near_share: float = 0.0, progress: bool = False) -> float:
+               near_share: float = 0.0, exclude: np.ndarray | None = None, progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
-    signed distance of :func:`detection_mask`, Gamma to the local peak amplitude (both
-    interpolated between voxel centres). ``window_m`` [m] is the local window's edge.
+    signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
+    amplitude (both interpolated between voxel centres). ``window_m`` [m] is the local window's edge.
     Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
     window = max(1, round(window_m / float(np.max(grid.voxel_m))))
     signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
-                              closing_m=closing_m)
+                              closing_m=closing_m, exclude=exclude)
     distance = torch.from_numpy(signed).to(device)
     peak = torch.from_numpy(local_peak_amplitude(power, window)).to(device)
     voxel = float(np.max(grid.voxel_m))
