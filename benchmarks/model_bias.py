@@ -1,8 +1,8 @@
 """How far the optimum of the GeRaF loss sits from the truth: f is pre-fitted to the *true*
 SDF of the default demo scene, the default fit then runs on the demo's data, and the mesh
-is scored before and after. A renderer that models the data exactly would stay at the
-start; the drift measures what the renderer's approximations (and the optimiser's noise)
-cost.
+is scored before and after (and each object's median signed distance, + outward: which way
+the fit moves it). A renderer that models the data exactly would stay at the start; the
+drift measures what the renderer's approximations (and the optimiser's noise) cost.
 
 Usage: python benchmarks/model_bias.py [--out benchmarks/results/model_bias.json]
        [--recon '{"train": {"geometry_delay": 0}}']   (reconstruction settings over the defaults)
@@ -20,7 +20,7 @@ from demo_data import demo_data
 
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
-from rfsdf.metrics import evaluate_mesh
+from rfsdf.metrics import evaluate_mesh, evaluate_scene
 from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.recon.warm_start import fit_to_image
 
@@ -39,7 +39,9 @@ def main() -> None:
 
     def score(field) -> dict:
         mesh = extract_mesh(field.sdf, scene.lower_m, scene.upper_m, demo.mesh_resolution)
-        return evaluate_mesh(mesh, scene, samples=demo.metric_samples).as_dict()
+        objects = evaluate_scene(mesh, scene, samples=demo.metric_samples).objects
+        return {**evaluate_mesh(mesh, scene, samples=demo.metric_samples).as_dict(),
+                "bias_mm": {name: m.bias_mm for name, m in objects.items()}}
 
     with tempfile.TemporaryDirectory() as run:
         trainer = Trainer(Problem(data.measurements, grid), config, run)
