@@ -1,10 +1,10 @@
 """What the warm start's target can score: the closed detection set of the demo's CLEAN image
 (the surface f is regressed onto, `recon.warm_start.detection_target`), meshed and scored
 for a grid of detection settings, with and without the voxels in front of each view's
-range ridge (`[init] carve_front`, `radar.detection.in_front_of_ridges`), without any fit. Per setting: full and observed-surface
-Chamfer, the accuracy near seen / unseen true surface, objects found, and the shares of the
-target's surface more than 5 mm outside and inside the true objects (where the off surface
-lies). About 7 minutes on 2 cores (CLEAN once).
+range ridge (`[init] carve_front`, `radar.detection.in_front_of_ridges`), without any fit.
+Per setting: full and observed-surface Chamfer, the accuracy near seen / unseen true
+surface, objects found, and the shares of the target's surface more than 5 mm outside and
+inside the true objects (where the off surface lies). About 7 minutes on 2 cores (CLEAN once).
 
 Usage: python benchmarks/detection_settings.py [--out benchmarks/results/detection_settings.json]
 """
@@ -43,12 +43,11 @@ def main() -> None:
     clean = clean_image(data.measurements, grid)
     power, per_view = clean.power.numpy(), clean.per_view_power.numpy()
     centres = data.measurements.acquisition.tx_m.mean(1)
-    window = max(1, round(init.window_m / float(np.max(grid.voxel_m))))
     observed = partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf)
     rows = []
     for local, carve in itertools.product(LOCAL_THRESHOLDS, (False, True)):
         front = in_front_of_ridges(per_view, centres, grid, threshold=init.threshold, local_threshold=local,
-                                   window_voxels=window) if carve else None
+                                   window_m=init.window_m) if carve else None
         for closing in CLOSINGS_M:
             rows.append(_scored(detection_target(power, grid, threshold=init.threshold, local_threshold=local,
                                                  window_m=init.window_m, closing_m=closing, exclude=front),

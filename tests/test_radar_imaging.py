@@ -85,7 +85,7 @@ def test_in_front_of_ridges_marks_the_radar_side_half_of_a_range_blob():
     blob = np.exp(-(x**2 + y**2) / (2 * 0.006**2) - z**2 / (2 * 0.015**2))
     side = np.zeros(grid.shape)
     front = in_front_of_ridges(np.stack([blob, side]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]), grid,
-                               threshold=0.06, local_threshold=0.5, window_voxels=5)
+                               threshold=0.06, local_threshold=0.5, window_m=0.03)
     column = front[9, 9]  # the voxel column nearest the axis
     assert column[z[9, 9] > 0.004].any() and not column[z[9, 9] < 0].any()
     bright = blob[9, 9] >= 0.5

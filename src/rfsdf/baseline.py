@@ -14,7 +14,7 @@ import trimesh
 from .geometry.grid import Grid
 from .mesh import mesh_from_volume
 from .metrics import MeshMetrics, compare_meshes
-from .radar.detection import amplitude_of, detection_level
+from .radar.detection import amplitude_of, detection_level, window_voxels
 
 __all__ = ["DEFAULT_FRACTIONS", "threshold_mesh", "detection_mesh", "BaselineResult", "best_threshold_mesh"]
 
@@ -31,8 +31,8 @@ def detection_mesh(power: np.ndarray, grid: Grid, *, threshold: float, local_thr
                    window_m: float) -> trimesh.Trimesh:
     """Mesh of the boundary of :func:`~rfsdf.radar.detection.detection_mask` (the amplitude
     crossing its local level), by marching cubes on amplitude - level."""
-    window = max(1, round(window_m / float(np.max(grid.voxel_m))))
-    level = detection_level(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window)
+    level = detection_level(power, threshold=threshold, local_threshold=local_threshold,
+                            window_voxels=window_voxels(window_m, grid))
     return mesh_from_volume(level - amplitude_of(power), grid, level=0.0)
 
 

@@ -13,12 +13,17 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["amplitude_of", "detection_mask", "detection_level", "in_front_of_ridges"]
+__all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges"]
 
 
 def amplitude_of(power: np.ndarray) -> np.ndarray:
     """sqrt(power) in float64; negative values (round-off) count as 0."""
     return np.sqrt(np.maximum(np.asarray(power, float), 0))
+
+
+def window_voxels(window_m: float, grid) -> int:
+    """Edge [voxels, >= 1] of the local-peak window of edge ``window_m`` [m] on ``grid``."""
+    return max(1, round(window_m / float(np.max(grid.voxel_m))))
 
 
 def detection_level(power: np.ndarray, *, threshold: float, local_threshold: float, window_voxels: int) -> np.ndarray:
@@ -45,14 +50,14 @@ def detection_mask(power: np.ndarray, *, threshold: float, local_threshold: floa
     return inside
 
 
-
 def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, grid, *, threshold: float,
-                       local_threshold: float, window_voxels: int) -> np.ndarray:
+                       local_threshold: float, window_m: float) -> np.ndarray:
     """(nx, ny, nz) bool: voxels in front of a range ridge of some view (range blur, not surface).
 
     A glint images as a blob about a range resolution deep along the view's line of sight,
     centred on the surface. A voxel is marked where, in some view v, it belongs to v's own
-    detection (:func:`detection_level` of v's power at ``threshold`` and ``local_threshold``)
+    detection (:func:`detection_level` of v's power at ``threshold`` and ``local_threshold``,
+    the local window of edge ``window_m`` [m])
     and the amplitude one voxel further from v's array centre (``view_centres_m`` (V, 3) [m])
     is larger: the ridge, where the surface is, still lies behind it. Removing these voxels
     from a detection set cuts the half of each blob that stands in front of the seen face
@@ -63,6 +68,7 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
     points = grid.points().double().numpy()  # (N, 3) voxel centres
     voxel = np.asarray(grid.voxel_m, float)
     front = np.zeros(grid.shape, bool)
+    window = window_voxels(window_m, grid)
     for power, centre in zip(per_view_power, np.asarray(view_centres_m, float)):
         amplitude = amplitude_of(power)
         towards = centre - points
@@ -71,6 +77,6 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
         index = ((behind - np.asarray(grid.lower_m, float)) / voxel - 0.5).T  # fractional voxel indices
         further = ndimage.map_coordinates(amplitude, index, order=1, mode="nearest").reshape(grid.shape)
         own = amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
-                                           window_voxels=window_voxels)
+                                           window_voxels=window)
         front |= own & (amplitude > 0) & (further > amplitude)
     return front

@@ -203,10 +203,9 @@ class Trainer:
         threshold = detection_threshold(ic.threshold, clean)
         exclude = None
         if ic.carve_front:
-            window = max(1, round(ic.window_m / float(np.max(grid.voxel_m))))
-            exclude = in_front_of_ridges(clean.per_view_power.numpy(), self.problem.measurements.acquisition.tx_m.mean(1),
-                                         grid, threshold=threshold, local_threshold=ic.local_threshold,
-                                         window_voxels=window)
+            centres = self.problem.measurements.acquisition.tx_m.mean(1)
+            exclude = in_front_of_ridges(clean.per_view_power.numpy(), centres, grid, threshold=threshold,
+                                         local_threshold=ic.local_threshold, window_m=ic.window_m)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude,

@@ -31,7 +31,7 @@ from scipy import ndimage
 
 from ..geometry import Grid, interpolated_sdf
 from ..progress import progress_bar
-from ..radar.detection import amplitude_of, detection_mask
+from ..radar.detection import amplitude_of, detection_mask, window_voxels
 from .losses import eikonal_loss
 
 __all__ = ["detection_threshold", "mask_signed_distance", "detection_target", "local_peak_amplitude", "fit_to_image",
@@ -118,15 +118,15 @@ def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_t
     image ``power``: :func:`detection_mask` with a local window of edge ``window_m`` [m],
     less the voxels of ``exclude`` (bool, grid.shape; e.g. ``in_front_of_ridges``), closed
     morphologically by a ball of radius ``closing_m`` [m]. What f is regressed onto."""
-    voxel = float(np.max(grid.voxel_m))
     inside = detection_mask(power, threshold=threshold, local_threshold=local_threshold,
-                            window_voxels=max(1, round(window_m / voxel)))
+                            window_voxels=window_voxels(window_m, grid))
     if exclude is not None:
         inside &= ~exclude
-    radius = round(closing_m / voxel)
+    radius = round(closing_m / float(np.max(grid.voxel_m)))
     if radius > 0:  # join the separate glints of one smooth object into one volume
         ball = np.linalg.norm(np.mgrid[-radius:radius + 1, -radius:radius + 1, -radius:radius + 1], axis=0) <= radius
-        inside = ndimage.binary_closing(np.pad(inside, radius), structure=ball)[radius:-radius, radius:-radius, radius:-radius]
+        inside = ndimage.binary_closing(np.pad(inside, radius), structure=ball)
+        inside = inside[radius:-radius, radius:-radius, radius:-radius]
     return mask_signed_distance(inside, grid)
 
 
@@ -138,11 +138,10 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     amplitude (both interpolated between voxel centres). ``window_m`` [m] is the local window's edge.
     Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
-    window = max(1, round(window_m / float(np.max(grid.voxel_m))))
     signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
                               closing_m=closing_m, exclude=exclude)
     distance = torch.from_numpy(signed).to(device)
-    peak = torch.from_numpy(local_peak_amplitude(power, window)).to(device)
+    peak = torch.from_numpy(local_peak_amplitude(power, window_voxels(window_m, grid))).to(device)
     voxel = float(np.max(grid.voxel_m))
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
     return fit_to_image(field, grid.lower_m, grid.upper_m, interpolated_sdf(distance, grid),
