@@ -91,3 +91,56 @@ def test_in_front_of_ridges_marks_the_radar_side_half_of_a_range_blob():
     bright = blob[9, 9] >= 0.5
     assert column[bright & (z[9, 9] > 0.004)].all()  # the blob's near half, down to the ridge
     assert not front[np.abs(x) > 0.03].any()  # outside the blob nothing is marked
+
+
+def test_range_sidelobes_match_the_dirichlet_kernel():
+    """K uniform frequencies: the range profile is |sin(K x) / (K sin x)|, x = 2 pi delta_f d / c,
+    its first null at c / 2B and its peak sidelobe (computed here from that closed form on a
+    fine grid) 0.22 for K = 16, tending to the sinc's 2 / (3 pi) as K grows."""
+    from rfsdf.radar.waveform import ofdm_frequencies, range_response, range_sidelobes
+
+    for k in (16, 64):
+        freqs = ofdm_frequencies(79e9, 4e9, k)
+        step = freqs[1] - freqs[0]
+        d = np.linspace(1e-4, SPEED_OF_LIGHT / (4 * step), 200_001)  # up to half the unambiguous range
+        x = 2 * np.pi * step * d / SPEED_OF_LIGHT
+        dirichlet = np.abs(np.sin(k * x) / (k * np.sin(x)))
+        assert np.allclose(range_response(freqs, d[::997]), dirichlet[::997], atol=1e-9)
+        null, level = range_sidelobes(freqs)
+        assert null == pytest.approx(range_resolution_m(4e9), rel=1e-3)
+        assert level == pytest.approx(dirichlet[d > 1.01 * null].max(), rel=1e-3)
+    assert level == pytest.approx(2 / (3 * np.pi), rel=0.03)
+    assert range_sidelobes([79e9]) == (float("inf"), 1.0)
+
+
+def test_on_range_sidelobes_marks_a_weak_copy_on_a_bright_glints_line_of_sight():
+    """A bright blob at the origin seen from +z, and a blob 0.1 as bright one range resolution
+    (37.5 mm) nearer the array: the weak one is a sidelobe (marked), the bright one is not.
+    The same weak blob beside the line of sight, or as bright as 0.5 (above the -13 dB
+    sidelobe level), or also seen by a second view in which nothing brighter is on its line
+    of sight, is genuine (not marked)."""
+    from rfsdf.radar.detection import on_range_sidelobes
+    from rfsdf.radar.waveform import ofdm_frequencies
+
+    grid = Grid((-0.12,) * 3, (0.12,) * 3, (40,) * 3)  # 6 mm voxels
+    x, y, z = grid.points().double().numpy().T.reshape(3, *grid.shape)
+    freqs = ofdm_frequencies(79e9, 4e9, 16)
+
+    def blob(cx, cz, amplitude):
+        return amplitude * np.exp(-((x - cx) ** 2 + y**2 + (z - cz) ** 2) / (2 * 0.006**2))
+
+    def marked(views, centres):
+        power = np.stack(views) ** 2
+        return on_range_sidelobes(power, np.array(centres), freqs, grid, threshold=0.01, local_threshold=0.5,
+                                  window_m=0.03)
+
+    above = [0.0, 0.0, 1.0]
+    near_weak = (np.abs(x) < 0.007) & (np.abs(y) < 0.007) & (np.abs(z - 0.0375) < 0.007)
+    near_bright = (np.abs(x) < 0.007) & (np.abs(y) < 0.007) & (np.abs(z) < 0.007)
+    lobe = marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.1)], [above])
+    assert lobe[near_weak].all() and not lobe[near_bright].any()
+    assert not lobe[np.abs(z - 0.0375) > 0.02].any()  # nothing else is marked
+    assert not marked([blob(0, 0, 1.0) + blob(0.06, 0.0375, 0.1)], [above]).any()  # off the line of sight
+    assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.5)], [above]).any()  # brighter than a sidelobe
+    side_view = blob(0, 0.0375, 0.1)  # seen from +x with nothing in its way
+    assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.1), side_view], [above, [1.0, 0.0, 0.0375]]).any()

@@ -6,6 +6,11 @@ local rule cuts every object at its own fraction of its peak, so a strong reflec
 not bloated by its blur and a weak one is not lost below a global level set by the
 strongest: the idea of a cell-averaging CFAR detector, with the local maximum as the
 reference level.
+
+Per view, two rules take voxels out of a detection set: ``in_front_of_ridges`` (the half of
+a glint's range blob that stands before the surface) and ``on_range_sidelobes`` (the weak
+copies a bright glint leaves a range resolution before and behind it on the same line of
+sight, below the waveform's sidelobe level: range-sidelobe blanking).
 """
 
 from __future__ import annotations
@@ -13,7 +18,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges"]
+from .waveform import range_sidelobes
+
+__all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges",
+           "on_range_sidelobes"]
+
+SIDELOBE_REACH = 4.0  # on_range_sidelobes looks this many range resolutions along each line of sight
+SIDELOBE_TUBE_VOXELS = 3  # ... within a tube of this many voxels across it
 
 
 def amplitude_of(power: np.ndarray) -> np.ndarray:
@@ -65,18 +76,72 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
 
     per_view_power : (V, nx, ny, nz) per-view image power; grid : the images' Grid.
     """
-    points = grid.points().double().numpy()  # (N, 3) voxel centres
-    voxel = np.asarray(grid.voxel_m, float)
+    behind = float(np.max(grid.voxel_m))
+    points = grid.points().double().numpy()
     front = np.zeros(grid.shape, bool)
+    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, threshold=threshold,
+                                                    local_threshold=local_threshold, window_m=window_m):
+        further = _sampled(amplitude, grid, points - behind * towards)
+        front |= own & (further.reshape(grid.shape) > amplitude)
+    return front
+
+
+def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, frequencies_hz, grid, *,
+                       threshold: float, local_threshold: float, window_m: float) -> np.ndarray:
+    """(nx, ny, nz) bool: detected voxels that no view shows as more than a range sidelobe.
+
+    A bright glint leaves, in the view that sees it, weak copies along that view's line of
+    sight about a range resolution before and behind it (the waveform's range sidelobes, and
+    what CLEAN's on-grid point model leaves of them): small detections a few centimetres off
+    the objects. A voxel of view v's own detection (as in :func:`in_front_of_ridges`) is a
+    sidelobe in v when a voxel on its line of sight to v's array, between half a range
+    resolution and ``SIDELOBE_REACH`` of them away (within a tube of ``SIDELOBE_TUBE_VOXELS``),
+    is brighter than it by more than 1 / (the waveform's peak range sidelobe,
+    :func:`~rfsdf.radar.waveform.range_sidelobes`: 0.22 for 16 uniform frequencies). Marked
+    are the voxels that are a sidelobe in some view and genuine in none, so a weak surface
+    behind a bright one survives if any other view sees it.
+
+    per_view_power : (V, nx, ny, nz); view_centres_m : (V, 3) [m]; frequencies_hz : (K,).
+    """
+    null_m, level = range_sidelobes(frequencies_hz)
+    if not np.isfinite(null_m):
+        return np.zeros(grid.shape, bool)
+    points = grid.points().double().numpy()
+    offsets = np.arange(0.5 * null_m, SIDELOBE_REACH * null_m, 0.5 * float(np.max(grid.voxel_m)))
+    sidelobe, genuine = np.zeros(grid.size, bool), np.zeros(grid.size, bool)
+    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, threshold=threshold,
+                                                    local_threshold=local_threshold, window_m=window_m):
+        index = np.flatnonzero(own)
+        tube = ndimage.maximum_filter(amplitude, size=SIDELOBE_TUBE_VOXELS)
+        brightest = np.zeros(len(index))
+        for offset in np.concatenate([offsets, -offsets]):
+            ray = points[index] + offset * towards[index]
+            brightest = np.maximum(brightest, _sampled(tube, grid, ray, outside=0.0))
+        lobe = amplitude.ravel()[index] < level * brightest
+        sidelobe[index[lobe]] = True
+        genuine[index[~lobe]] = True
+    return (sidelobe & ~genuine).reshape(grid.shape)
+
+
+def _view_detections(per_view_power, view_centres_m, grid, *, threshold, local_threshold, window_m):
+    """Per view: its amplitude (grid.shape), its own detection (bool, grid.shape: amplitude at or
+    above :func:`detection_level` of that view's power) and the unit vectors (N, 3) from each
+    voxel centre towards the view's array centre."""
+    points = grid.points().double().numpy()  # (N, 3) voxel centres
     window = window_voxels(window_m, grid)
     for power, centre in zip(per_view_power, np.asarray(view_centres_m, float)):
         amplitude = amplitude_of(power)
+        own = (amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
+                                            window_voxels=window)) & (amplitude > 0)
         towards = centre - points
         towards /= np.linalg.norm(towards, axis=1, keepdims=True)
-        behind = points - float(voxel.max()) * towards
-        index = ((behind - np.asarray(grid.lower_m, float)) / voxel - 0.5).T  # fractional voxel indices
-        further = ndimage.map_coordinates(amplitude, index, order=1, mode="nearest").reshape(grid.shape)
-        own = amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
-                                           window_voxels=window)
-        front |= own & (amplitude > 0) & (further > amplitude)
-    return front
+        yield amplitude, own, towards
+
+
+def _sampled(volume: np.ndarray, grid, points: np.ndarray, outside: float | None = None) -> np.ndarray:
+    """(N,) trilinear samples of a voxel-centre volume at points (N, 3) [m]: the nearest face
+    value beyond the grid, or ``outside`` when given."""
+    index = ((points - np.asarray(grid.lower_m, float)) / np.asarray(grid.voxel_m, float) - 0.5).T
+    if outside is None:
+        return ndimage.map_coordinates(volume, index, order=1, mode="nearest")
+    return ndimage.map_coordinates(volume, index, order=1, mode="constant", cval=outside)
