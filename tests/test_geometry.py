@@ -106,6 +106,21 @@ def test_normals_of_sphere_are_radial(rng):
     torch.testing.assert_close(geo.normals(geo.Sphere(1.0), pts), pts / pts.norm(dim=1, keepdim=True))
 
 
+def test_curvature_is_the_sum_of_the_principal_curvatures():
+    """div(n) of the level set through each point: 2/r on a sphere, 1/rho on a cylinder, 0 on
+    a plane, 1/a + cos(phi)/(R + a cos(phi)) on a torus (outer and inner equator)."""
+    pts = torch.tensor([[0.3, 0.1, -0.2], [0.05, 0.4, 0.2], [-0.5, 0.0, 0.1]], dtype=torch.float64)
+    _, sphere = geo.gradient_and_curvature(geo.Sphere(0.2, (0.0, 0.0, 0.1)), pts)
+    torch.testing.assert_close(sphere, 2 / (pts - torch.tensor([0.0, 0.0, 0.1], dtype=torch.float64)).norm(dim=1))
+    _, cylinder = geo.gradient_and_curvature(geo.Cylinder(0.2, (0.0, 0.0, 1.0)), pts)
+    torch.testing.assert_close(cylinder, 1 / pts[:, :2].norm(dim=1))
+    grad, plane = geo.gradient_and_curvature(geo.HalfSpace((1.0, 2.0, 2.0), 0.1), pts)
+    assert plane.abs().max() < 1e-12 and torch.allclose(grad.norm(dim=1), torch.ones(3, dtype=torch.float64))
+    equator = torch.tensor([[0.5, 0.0, 0.0], [0.0, 0.3, 0.0]], dtype=torch.float64)
+    _, torus = geo.gradient_and_curvature(geo.Torus(0.4, 0.1), equator)
+    torch.testing.assert_close(torus, torch.tensor([10 + 1 / 0.5, 10 - 1 / 0.3], dtype=torch.float64))
+
+
 def test_sphere_trace_hits_analytic_intersection(rng):
     sphere = geo.Sphere(0.5, (0.0, 0.0, 2.0))
     origins = torch.zeros(200, 3, dtype=torch.float64)

@@ -59,11 +59,41 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
     for seed in range(3):
         cand = surface_candidates(sdf, points, sdf(points), float(grid.voxel_m[0]), 0.0013,
                                   torch.Generator().manual_seed(seed))
-        on = project_to_surface(sdf, cand)
+        on, _ = project_to_surface(sdf, cand)
         assert (on.norm(dim=1) - radius).abs().max() < 1e-6  # << lambda / 10 = 0.38 mm
         assert float(cand.area_m2.sum()) == pytest.approx(4 * math.pi * radius**2, rel=0.02)
         assert cand.spacing_m <= 0.0013
         torch.testing.assert_close(cand.normals, torch.nn.functional.normalize(cand.anchors, dim=1))
+        torch.testing.assert_close(cand.curvature, 2 / cand.anchors.norm(dim=1))
+        # the areas follow the surface: d(4 pi r^2)/dr = 8 pi r at the samples of the refresh
+        grown = torch.tensor(radius, requires_grad=True)
+        _, area = project_to_surface(lambda p: p.norm(dim=1) - grown, cand)
+        area.sum().backward()
+        assert float(grown.grad) == pytest.approx(8 * math.pi * radius, rel=0.02)
+
+
+def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_data):
+    """The derivative of the predicted image energy in the radius against finite differences
+    that draw fresh samples at each radius (4 draws): a sphere's RCS grows as r^2, so d log E /
+    dr is about 2 / r = 100 / m. With frozen areas the gradient said -86 / m (samples crowd
+    into the Fresnel zone as the sphere shrinks, each keeping its area): the fit pulled bright
+    balls inward (README, "The area term")."""
+    _, data = sphere_data
+    renderer = CoherentRenderer(data, _grid(), spacing_m=data.acquisition.wavelength_m / 6)
+    views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
+
+    def log_energy(radius, seed):
+        ball = _Ball(radius)
+        with torch.no_grad():
+            renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(seed))
+        energy = torch.log((renderer(ball, views, voxels).abs() ** 2).sum())
+        energy.backward()
+        return float(energy.detach()), float(ball.radius.grad)
+
+    step, seeds = 1e-3, range(4)
+    finite = np.mean([(log_energy(RADIUS + step, s)[0] - log_energy(RADIUS - step, s)[0]) / (2 * step) for s in seeds])
+    analytic = np.mean([log_energy(RADIUS, s)[1] for s in seeds])
+    assert 80 < finite < 150 and analytic == pytest.approx(finite, rel=0.15)
 
 
 def test_renderer_on_the_true_samples_reproduces_the_simulator(sphere_data, tiny_radar):
@@ -141,15 +171,18 @@ def _config(**train) -> ReconConfig:
 def _mean_radius(field, renderer) -> float:
     with torch.no_grad():
         renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(5))
-        return float(project_to_surface(field.sdf, renderer.candidates).norm(dim=1).mean())
+        return float(project_to_surface(field.sdf, renderer.candidates)[0].norm(dim=1).mean())
 
 
 def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
-    """From a 3 mm dilation to within lambda/4 of the truth. Not closer: with 6 views of a 4 cm
-    array, the amplitude loss of the ball's radius ripples with period lambda/2 (the glint
-    and the limb interfere; measured: local minima near 20, 21 and 22 mm of about the same
-    depth), so this radar cannot pin the radius to a fraction of a millimetre. f moves from
-    the first step (one uniform ball: Gamma has no brightness to explain first)."""
+    """From a 3 mm dilation into the basin of the truth: within lambda/2. Not closer: with 6
+    views of a 4 cm array, the amplitude loss of the ball's radius ripples with period about
+    a millimetre (the glint and the limb interfere; measured: local minima near 20, 21 and 22
+    mm of about the same depth), and the fit stops in the nearest (21.3 mm here). It used to
+    reach lambda/4 helped by a bias: with frozen sample areas the gradient said a sphere
+    brightens as it shrinks, and pulled every convex surface inward (README, "The area
+    term"). f moves from the first step (one uniform ball: Gamma has no brightness to
+    explain first)."""
     _, data = sphere_data
     trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),
                       tmp_path / "run")
@@ -159,7 +192,7 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
     assert _mean_radius(trainer.field, trainer.renderer) == pytest.approx(RADIUS + 0.003, abs=3e-4)
     fit = trainer.fit()
     wavelength = data.acquisition.wavelength_m
-    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 4)
+    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 2)
     first, last = (sum(r.data for r in rows) / 5 for rows in (fit.log[:5], fit.log[-5:]))
     assert len(fit.log) == 40 and last < first
 

@@ -9,7 +9,7 @@ from .csg import (
     Complement, Intersection, SmoothIntersection, SmoothUnion, Union,
     complement, difference, intersection, smooth_intersection, smooth_union, union,
 )
-from .differential import eikonal_residual, gradient, normals
+from .differential import eikonal_residual, gradient, gradient_and_curvature, normals
 from .grid import Grid, interpolated_sdf
 from .mesh_sdf import MeshSDF, load_watertight_mesh
 from .occupancy import occupancy
@@ -24,5 +24,5 @@ __all__ = [
     "Union", "Intersection", "Complement", "SmoothUnion", "SmoothIntersection",
     "union", "intersection", "complement", "difference", "smooth_union", "smooth_intersection",
     "Translate", "Rotate", "Scale", "rotation_matrix",
-    "gradient", "normals", "eikonal_residual", "occupancy", "sphere_trace", "TraceResult",
+    "gradient", "gradient_and_curvature", "normals", "eikonal_residual", "occupancy", "sphere_trace", "TraceResult",
 ]

@@ -1,4 +1,4 @@
-"""Gradients of SDFs by autograd: normals and the Eikonal residual."""
+"""Derivatives of SDFs by autograd: gradients, normals, curvature and the Eikonal residual."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import torch
 
 from .base import as_points
 
-__all__ = ["gradient", "normals", "eikonal_residual"]
+__all__ = ["gradient", "gradient_and_curvature", "normals", "eikonal_residual"]
 
 SDFCallable = Callable[[torch.Tensor], torch.Tensor]
 
@@ -25,6 +25,27 @@ def gradient(sdf: SDFCallable, points: torch.Tensor, *, create_graph: bool = Fal
         values = sdf(p)
         (grad,) = torch.autograd.grad(values.sum(), p, create_graph=create_graph)
     return grad
+
+
+def gradient_and_curvature(sdf: SDFCallable, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(grad f (N, 3), div(grad f / |grad f|) (N,) [1/m]) at ``points`` (N, 3) [m], detached.
+
+    The divergence of the unit normal is the sum of the two principal curvatures of the level
+    set through each point (2/R on a sphere of radius R, 1/R on a cylinder, 0 on a plane,
+    positive where the surface is convex): a surface element moved by V along its normal
+    grows by the factor 1 + curvature * V. From the Hessian H as (tr H - n^T H n) / |grad f|.
+    """
+    points = as_points(points)
+    with torch.enable_grad():
+        p = points.detach().requires_grad_(True)
+        (grad,) = torch.autograd.grad(sdf(p).sum(), p, create_graph=True)
+        rows = [torch.autograd.grad(grad[:, i].sum(), p, retain_graph=i < 2, allow_unused=True)[0]
+                if grad.requires_grad else None for i in range(3)]  # None where f is linear in p
+    hessian = torch.stack([torch.zeros_like(p) if r is None else r for r in rows], dim=1).detach()  # (N, 3, 3)
+    grad = grad.detach()
+    norm = grad.norm(dim=1).clamp(min=torch.finfo(grad.dtype).tiny)
+    along = torch.einsum("ni,nij,nj->n", grad, hessian, grad) / norm**2
+    return grad, (hessian.diagonal(dim1=1, dim2=2).sum(1) - along) / norm
 
 
 def normals(sdf: SDFCallable, points: torch.Tensor) -> torch.Tensor:

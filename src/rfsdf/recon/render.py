@@ -123,7 +123,7 @@ class CoherentRenderer:
             raise RuntimeError("call refresh() before rendering")
         cand = self.candidates
         with torch.set_grad_enabled(torch.is_grad_enabled() and geometry):
-            points = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
+            points, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
         amplitude = field.reflectivity(cand.anchors)
         targets = self.voxels[voxel_index]
         images = []
@@ -134,6 +134,6 @@ class CoherentRenderer:
                                           device=self.device))
                 continue
             gamma = amplitude[idx]
-            y = self.predict_data(v, points[idx], cand.normals[idx], cand.area_m2[idx], lambda _cos: gamma)
+            y = self.predict_data(v, points[idx], cand.normals[idx], area[idx], lambda _cos: gamma)
             images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

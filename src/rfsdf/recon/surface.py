@@ -2,14 +2,21 @@
 
 Coherent rendering needs points *on* the surface, at most lambda/3 apart, with area weights
 and normals (a shell delta_sigma(f) around it cannot be summed coherently, see
-``recon/render.py``). The sampler here needs no second derivatives:
+``recon/render.py``). The sampler here needs no double backward through the training graph
+(second derivatives only at the refresh, detached):
 
 1. Candidates (no gradient, refreshed every few steps): every voxel the zero level set can
    cross is split into s^3 cells of edge h <= the requested spacing, one uniformly random
    point p0 per cell; those with |f(p0)| < h/2 are kept, with their gradient g0 = grad f(p0).
 2. Projection (every step, differentiable): p* = p0 - f_theta(p0) g0 / |g0|^2, one Newton
    step onto f = 0 along the frozen gradient, so dp*/dtheta = -(df/dtheta) g0 / |g0|^2: the
-   normal velocity of the level set under a change of theta.
+   normal velocity V of the level set under a change of theta. The area each sample stands
+   for follows it too, dA/dtheta = A kappa V with kappa = div(g0 / |g0|) the sum of the
+   principal curvatures (frozen at the refresh like g0): the first-order area change of a
+   surface moved along its normal. Without it a sphere's glint would *brighten* as it
+   shrinks (its samples crowd into the Fresnel zone while each keeps its old area, amplitude
+   ~ 1/R instead of ~ R), and a too-dim bright ball was pulled inward until it vanished
+   (README, "The area term").
 
 Area weights follow from the coarea formula: the kept cells fill a slab of thickness
 h / |g0| around the surface, so each stands for an area h^2 |g0| (unbiased for any f, not
@@ -33,7 +40,7 @@ from typing import Callable
 
 import torch
 
-from ..geometry import gradient
+from ..geometry import gradient_and_curvature
 
 __all__ = ["SurfaceCandidates", "surface_candidates", "project_to_surface", "cells_per_voxel"]
 
@@ -47,12 +54,16 @@ class SurfaceCandidates:
 
     anchors : (Q, 3) [m] the points p0. gradients : (Q, 3) grad f(p0), detached.
     area_m2 : (Q,) area each sample stands for [m^2]. spacing_m : the cell edge h [m].
+    curvature : (Q,) [1/m] div(g0 / |g0|), the sum of the principal curvatures, detached.
+    values : (Q,) [m] f(p0) when the candidates were drawn (the level set the areas belong to).
     """
 
     anchors: torch.Tensor
     gradients: torch.Tensor
     area_m2: torch.Tensor
     spacing_m: float
+    curvature: torch.Tensor
+    values: torch.Tensor
 
     @property
     def normals(self) -> torch.Tensor:
@@ -79,23 +90,30 @@ def surface_candidates(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centre
     crossing = voxel_centres_m[voxel_values_m.abs() < _CROSSING_MARGIN * voxel_m]
     offsets = torch.stack(torch.meshgrid(*[torch.arange(cells, device=device)] * 3, indexing="ij"), -1).reshape(-1, 3)
     corner = crossing - 0.5 * voxel_m  # (M, 3) lower corners
-    kept = []
+    kept, values = [], []
     with torch.no_grad():
         for start in range(0, len(corner), max(1, _EVAL_CHUNK // len(offsets))):
             block = corner[start:start + max(1, _EVAL_CHUNK // len(offsets))]
             jitter = torch.rand(len(block), len(offsets), 3, generator=generator).to(device)
             points = (block[:, None] + h * (offsets[None] + jitter)).reshape(-1, 3)
-            kept.append(points[sdf(points).abs() < 0.5 * h])
+            f = sdf(points)
+            near = f.abs() < 0.5 * h
+            kept.append(points[near])
+            values.append(f[near])
     anchors = torch.cat(kept) if kept else torch.zeros(0, 3, device=device)
-    grads = torch.cat([gradient(sdf, chunk).detach() for chunk in anchors.split(_EVAL_CHUNK)]) \
-        if len(anchors) else torch.zeros(0, 3, device=device)
-    return SurfaceCandidates(anchors, grads, h**2 * grads.norm(dim=1), h)
+    derivatives = [gradient_and_curvature(sdf, chunk) for chunk in anchors.split(_EVAL_CHUNK)]
+    grads = torch.cat([g for g, _ in derivatives]) if derivatives else torch.zeros(0, 3, device=device)
+    curvature = torch.cat([k for _, k in derivatives]) if derivatives else torch.zeros(0, device=device)
+    values = torch.cat(values) if values else torch.zeros(0, device=device)
+    return SurfaceCandidates(anchors, grads, h**2 * grads.norm(dim=1), h, curvature, values)
 
 
 def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: SurfaceCandidates, *,
-                       smoothing_m: float = 0.0) -> torch.Tensor:
-    """(Q, 3) [m] points p* = p0 - f(p0) g0 / |g0|^2 on the zero level set, differentiable in
-    the parameters of ``sdf`` (one Newton step along the frozen gradient).
+                       smoothing_m: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Points p* = p0 - f(p0) g0 / |g0|^2 (Q, 3) [m] on the zero level set, one Newton step
+    along the frozen gradient, and the area each stands for (Q,) [m^2], A max(0, 1 + kappa V)
+    with V = -(f(p0) - f(p0) at the refresh) / |g0| how far the level set moved since the
+    areas were drawn: both differentiable in the parameters of ``sdf``.
 
     With ``smoothing_m`` > 0 the gradient reaching f(p0) (the normal velocity the loss asks
     for at each sample) is replaced by its Gaussian-weighted local mean over that radius
@@ -107,8 +125,10 @@ def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: 
     values = sdf(candidates.anchors)
     if smoothing_m > 0:
         values = _SmoothedGradient.apply(values, candidates.anchors, smoothing_m)
-    step = values / (g * g).sum(1).clamp(min=1e-12)
-    return candidates.anchors - step[:, None] * g
+    norm_sq = (g * g).sum(1).clamp(min=1e-12)
+    moved = -(values - candidates.values) / norm_sq.sqrt()
+    area = candidates.area_m2 * (1 + candidates.curvature * moved).clamp(min=0)
+    return candidates.anchors - (values / norm_sq)[:, None] * g, area
 
 
 def _local_mean(values: torch.Tensor, points: torch.Tensor, radius_m: float) -> torch.Tensor:

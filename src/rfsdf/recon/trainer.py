@@ -148,6 +148,7 @@ class Trainer:
         cand = self.renderer.candidates
         surface = None if cand is None else {"anchors": cand.anchors, "gradients": cand.gradients,
                                              "area_m2": cand.area_m2, "spacing_m": cand.spacing_m,
+                                             "curvature": cand.curvature, "values": cand.values,
                                              "lit": self.renderer.lit}
         save_checkpoint(self.run_dir, {
             "step": self.step, "field": self.field.state_dict(), "field_kwargs": self.field_kwargs,
@@ -175,7 +176,8 @@ class Trainer:
             surface = state["surface"]
             if surface is not None:
                 self.renderer.candidates = SurfaceCandidates(surface["anchors"], surface["gradients"],
-                                                             surface["area_m2"], surface["spacing_m"])
+                                                             surface["area_m2"], surface["spacing_m"],
+                                                             surface["curvature"], surface["values"])
                 self.renderer.lit = surface["lit"]
             self.step = state["step"]
             self.log = [StepRecord(**row) for row in state["log"]]
