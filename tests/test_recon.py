@@ -250,6 +250,34 @@ def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_dat
     assert terms["loss"] == pytest.approx(terms["data"] + 0.1 * terms["eikonal"], rel=1e-5)
 
 
+def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves(sphere_data, tmp_path, monkeypatch):
+    """``[init] blank_range_sidelobes`` (on) and ``carve_front`` (off) reach the warm start as
+    the voxels it leaves out, from the per-view images of its method (here the MF's)."""
+    import rfsdf.recon.trainer as trainer_module
+    from rfsdf.radar.detection import in_front_of_ridges, on_range_sidelobes
+
+    _, data = sphere_data
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
+    for carve, blank in ((False, False), (True, False), (False, True)):
+        settings = _config(steps=2).model_dump()
+        settings["init"].update(method="mf", carve_front=carve, blank_range_sidelobes=blank, threshold=0.05)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{carve}{blank}")
+        trainer.warm_start()
+        grid = trainer.problem.grid
+        per_view = (trainer.observed**2).reshape(-1, *grid.shape).numpy()
+        rule = dict(threshold=0.05, local_threshold=0.5, window_m=0.03)
+        centres = data.acquisition.tx_m.mean(1).numpy()
+        expected = np.zeros(grid.shape, bool)
+        if carve:
+            expected = in_front_of_ridges(per_view, centres, grid, **rule)
+            assert expected.any()
+        if blank:
+            expected = on_range_sidelobes(per_view, centres, data.acquisition.frequencies_hz.numpy(), grid, **rule)
+        np.testing.assert_array_equal(seen["exclude"], expected)
+    assert ReconConfig().init.blank_range_sidelobes and not ReconConfig().init.carve_front
+
+
 def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):
     _, data = sphere_data
     trainer = Trainer(Problem(data, _grid(10)), _config(steps=6, geometry_delay=0.5), tmp_path / "run")
@@ -364,7 +392,6 @@ def test_detection_threshold_auto_is_the_clean_residual_floor_and_numbers_pass_t
         detection_threshold("auto", None)
     for bad, message in (({"threshold": 1.5}, 'init.threshold: must be "auto" or a number between 0 and 1'),
                          ({"threshold": "median"}, "init.threshold: must be"),
-                         ({"method": "mf", "threshold": "auto"}, 'init: threshold "auto" is the CLEAN residual floor'),
-                         ({"method": "mf", "carve_front": True}, "init: carve_front uses the per-view CLEAN images")):
+                         ({"method": "mf", "threshold": "auto"}, 'init: threshold "auto" is the CLEAN residual floor')):
         with pytest.raises(RfsdfError, match=message):
             validate(ReconConfig, {"init": bad}, "recon.toml")

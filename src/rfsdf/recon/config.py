@@ -47,8 +47,12 @@ class InitConfig(StrictModel):
     # lower weight the warm start got worse (README, "Quality on the default demo")
     eikonal_weight: NonNegativeFloat = 0.01
     # remove from the detection the voxels in front of a view's range ridge (the blob's half
-    # that stands before the seen face; radar.detection.in_front_of_ridges); needs "clean"
+    # that stands before the seen face; radar.detection.in_front_of_ridges)
     carve_front: bool = False
+    # remove the detections that no view shows as more than a range sidelobe of a brighter
+    # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
+    # centimetres off the objects (README, "Range-sidelobe blanking")
+    blank_range_sidelobes: bool = True
 
     @field_validator("threshold", mode="before")
     @classmethod
@@ -63,8 +67,6 @@ class InitConfig(StrictModel):
     def _auto_needs_clean(self):
         if self.method == "mf" and self.threshold == "auto":
             raise ValueError('threshold "auto" is the CLEAN residual floor; with method = "mf" give a number')
-        if self.method == "mf" and self.carve_front:
-            raise ValueError('carve_front uses the per-view CLEAN images; it needs method = "clean"')
         return self
 
 
