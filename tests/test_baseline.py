@@ -54,3 +54,7 @@ def test_detection_cuts_each_bump_at_its_own_half_amplitude():
     with pytest.raises(ValueError):
         threshold_mesh(power, grid, 1.5)
     assert len(threshold_mesh(power, grid, 0.25).split()) == 1  # the global rule keeps only the strong bump
+    weak_side = (np.linalg.norm(p - centres[1], axis=1) < 0.02).reshape(grid.shape)
+    kept = detection_mesh(power, grid, threshold=0.02, local_threshold=0.5, window_m=0.04, exclude=weak_side)
+    assert (np.linalg.norm(kept.vertices - centres[0], axis=1) < 0.03).all()  # the excluded bump is gone
+    assert len(kept.vertices) == pytest.approx((nearest == 0).sum(), rel=0.05)

@@ -251,7 +251,7 @@ def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_dat
 
 
 def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves(sphere_data, tmp_path, monkeypatch):
-    """``[init] blank_range_sidelobes`` (on) and ``carve_front`` (off) reach the warm start as
+    """``[init] blank_range_sidelobes`` and ``carve_front`` (both on) reach the warm start as
     the voxels it leaves out, from the per-view images of its method (here the MF's)."""
     import rfsdf.recon.trainer as trainer_module
     from rfsdf.radar.detection import in_front_of_ridges, on_range_sidelobes
@@ -275,7 +275,7 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
         if blank:
             expected = on_range_sidelobes(per_view, centres, data.acquisition.frequencies_hz.numpy(), grid, **rule)
         np.testing.assert_array_equal(seen["exclude"], expected)
-    assert ReconConfig().init.blank_range_sidelobes and not ReconConfig().init.carve_front
+    assert ReconConfig().init.blank_range_sidelobes and ReconConfig().init.carve_front
 
 
 def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):

@@ -28,12 +28,16 @@ def threshold_mesh(power: np.ndarray, grid: Grid, fraction: float) -> trimesh.Tr
 
 
 def detection_mesh(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float,
-                   window_m: float) -> trimesh.Trimesh:
+                   window_m: float, exclude: np.ndarray | None = None) -> trimesh.Trimesh:
     """Mesh of the boundary of :func:`~rfsdf.radar.detection.detection_mask` (the amplitude
-    crossing its local level), by marching cubes on amplitude - level."""
+    crossing its local level), by marching cubes on amplitude - level, less the voxels of
+    ``exclude`` (bool, grid.shape; the warm start's exclusions)."""
     level = detection_level(power, threshold=threshold, local_threshold=local_threshold,
                             window_voxels=window_voxels(window_m, grid))
-    return mesh_from_volume(level - amplitude_of(power), grid, level=0.0)
+    values = level - amplitude_of(power)
+    if exclude is not None:
+        values = np.where(exclude, np.abs(values).max(), values)
+    return mesh_from_volume(values, grid, level=0.0)
 
 
 @dataclass(frozen=True)

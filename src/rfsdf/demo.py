@@ -49,7 +49,7 @@ from .radar import (
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
 from .recon import Problem, ReconConfig, Trainer
-from .recon.warm_start import detection_threshold
+from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
@@ -216,12 +216,15 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, device: str = "aut
                                       "sweep_chamfer_mm": {str(k): v for k, v in best.sweep.items()}})
     ic = config.init
     threshold = detection_threshold(ic.threshold, clean)
+    exclude = excluded_voxels(ic, clean.per_view_power.numpy(), measurements.acquisition, grid, threshold)
     detected = detection_mesh(clean_power, grid, threshold=threshold, local_threshold=ic.local_threshold,
-                              window_m=ic.window_m)
+                              window_m=ic.window_m, exclude=exclude)
     export_mesh(detected, out / "clean-detection.ply")
     methods["clean_detection"] = MethodResult("CLEAN detection", score(detected),
                                               {"threshold": threshold, "threshold_setting": ic.threshold,
-                                               "local_threshold": ic.local_threshold})
+                                               "local_threshold": ic.local_threshold,
+                                               "carve_front": ic.carve_front,
+                                               "blank_range_sidelobes": ic.blank_range_sidelobes})
     lap("baselines_s")
 
     plot_sdf_slices(fit.field.cpu().sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,

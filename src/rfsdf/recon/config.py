@@ -48,7 +48,7 @@ class InitConfig(StrictModel):
     eikonal_weight: NonNegativeFloat = 0.01
     # remove from the detection the voxels in front of a view's range ridge (the blob's half
     # that stands before the seen face; radar.detection.in_front_of_ridges)
-    carve_front: bool = False
+    carve_front: bool = True
     # remove the detections that no view shows as more than a range sidelobe of a brighter
     # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
     # centimetres off the objects (README, "Range-sidelobe blanking")

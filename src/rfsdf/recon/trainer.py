@@ -30,7 +30,6 @@ from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.clean import CleanResult, clean_image
-from ..radar.detection import in_front_of_ridges, on_range_sidelobes
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
 from .losses import DATA_LOSSES, eikonal_loss
@@ -38,7 +37,7 @@ from .render import RENDERERS
 from .sampling import cell_voxels, data_voxel_probabilities, eikonal_points, pooled_amplitude, sample_data_voxels
 from .schedules import SCHEDULES
 from .surface import SurfaceCandidates
-from .warm_start import detection_threshold, warm_start
+from .warm_start import detection_threshold, excluded_voxels, warm_start
 
 __all__ = ["Problem", "StepRecord", "FitResult", "Trainer"]
 
@@ -203,15 +202,8 @@ class Trainer:
         else:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
         threshold = detection_threshold(ic.threshold, clean)
-        acquisition = self.problem.measurements.acquisition
         per_view = (clean.per_view_power if clean is not None else (self.observed**2).reshape(-1, *grid.shape))
-        per_view, centres = per_view.cpu().numpy(), acquisition.tx_m.mean(1).numpy()
-        rule = dict(threshold=threshold, local_threshold=ic.local_threshold, window_m=ic.window_m)
-        exclude = np.zeros(grid.shape, bool)
-        if ic.carve_front:
-            exclude |= in_front_of_ridges(per_view, centres, grid, **rule)
-        if ic.blank_range_sidelobes:
-            exclude |= on_range_sidelobes(per_view, centres, acquisition.frequencies_hz.numpy(), grid, **rule)
+        exclude = excluded_voxels(ic, per_view.cpu().numpy(), self.problem.measurements.acquisition, grid, threshold)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude,

@@ -31,11 +31,11 @@ from scipy import ndimage
 
 from ..geometry import Grid, interpolated_sdf
 from ..progress import progress_bar
-from ..radar.detection import amplitude_of, detection_mask, window_voxels
+from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
 from .losses import eikonal_loss
 
-__all__ = ["detection_threshold", "mask_signed_distance", "detection_target", "local_peak_amplitude", "fit_to_image",
-           "warm_start"]
+__all__ = ["detection_threshold", "excluded_voxels", "mask_signed_distance", "detection_target",
+           "local_peak_amplitude", "fit_to_image", "warm_start"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
 
@@ -49,6 +49,21 @@ def detection_threshold(setting: float | str, clean=None) -> float:
     if clean is None:
         raise ValueError('threshold "auto" needs the CLEAN image (init method "clean")')
     return clean.residual_floor()
+
+
+def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, threshold: float) -> np.ndarray:
+    """(nx, ny, nz) bool: the voxels the ``[init]`` settings ``init`` take out of the detection:
+    in front of a view's range ridge (``carve_front``) and range sidelobes
+    (``blank_range_sidelobes``), from the per-view image power (V, nx, ny, nz) of the
+    :class:`~rfsdf.radar.Acquisition` ``acquisition`` at the global ``threshold``."""
+    centres = acquisition.tx_m.mean(1).cpu().numpy()
+    rule = dict(threshold=threshold, local_threshold=init.local_threshold, window_m=init.window_m)
+    exclude = np.zeros(grid.shape, bool)
+    if init.carve_front:
+        exclude |= in_front_of_ridges(per_view_power, centres, grid, **rule)
+    if init.blank_range_sidelobes:
+        exclude |= on_range_sidelobes(per_view_power, centres, acquisition.frequencies_hz.cpu().numpy(), grid, **rule)
+    return exclude
 
 
 def mask_signed_distance(inside: np.ndarray, grid: Grid) -> np.ndarray:
