@@ -13,10 +13,11 @@ Each step, for each chosen view v:
 so the prediction carries the carrier phase of every sample, the interference between them,
 the array's exact, shift-variant PSF and its sidelobes, and the same column normalisation
 as the observed image. Gradients reach theta through the sample positions (the phase of A
-and the geometry of the lobe) and phi through the reflectivity Gamma_phi >= 0, which stands
-in for the Fresnel coefficient (a material head would feed a permittivity to it instead).
-Facing and shadows are frozen between refreshes: shadows are traced against the network
-evaluated on the image grid (trilinear), a cheap stand-in for the network itself.
+and the geometry of the lobe) and their areas (which grow with the surface's curvature as it
+moves out, ``surface.project_to_surface``), and phi through the reflectivity Gamma_phi >= 0,
+which stands in for the Fresnel coefficient (a material head would feed a permittivity to it
+instead). Normals, facing and shadows are frozen between refreshes: shadows are traced
+against the network evaluated on the image grid (trilinear), a cheap stand-in for it.
 
 Why not a shell c = Gamma delta_sigma(f) dV on voxels (the textbook GeRaF rendering, and this
 project's earlier incoherent renderers): summed coherently across a flat surface it returns
