@@ -67,7 +67,7 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
         torch.testing.assert_close(cand.curvature, 2 / cand.anchors.norm(dim=1))
         # the areas follow the surface: d(4 pi r^2)/dr = 8 pi r at the samples of the refresh
         grown = torch.tensor(radius, requires_grad=True)
-        _, area = project_to_surface(lambda p: p.norm(dim=1) - grown, cand)
+        _, area = project_to_surface(lambda p, r=grown: p.norm(dim=1) - r, cand)
         area.sum().backward()
         assert float(grown.grad) == pytest.approx(8 * math.pi * radius, rel=0.02)
 
@@ -266,7 +266,7 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
         trainer.warm_start()
         grid = trainer.problem.grid
         per_view = (trainer.observed**2).reshape(-1, *grid.shape).numpy()
-        rule = dict(threshold=0.05, local_threshold=0.5, window_m=0.03)
+        rule = {"threshold": 0.05, "local_threshold": 0.5, "window_m": 0.03}
         centres = data.acquisition.tx_m.mean(1).numpy()
         expected = np.zeros(grid.shape, bool)
         if carve:

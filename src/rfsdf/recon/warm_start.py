@@ -57,7 +57,7 @@ def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, t
     (``blank_range_sidelobes``), from the per-view image power (V, nx, ny, nz) of the
     :class:`~rfsdf.radar.Acquisition` ``acquisition`` at the global ``threshold``."""
     centres = acquisition.tx_m.mean(1).cpu().numpy()
-    rule = dict(threshold=threshold, local_threshold=init.local_threshold, window_m=init.window_m)
+    rule = {"threshold": threshold, "local_threshold": init.local_threshold, "window_m": init.window_m}
     exclude = np.zeros(grid.shape, bool)
     if init.carve_front:
         exclude |= in_front_of_ridges(per_view_power, centres, grid, **rule)
