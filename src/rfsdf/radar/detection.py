@@ -79,7 +79,7 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
     behind = float(np.max(grid.voxel_m))
     points = grid.points().double().numpy()
     front = np.zeros(grid.shape, bool)
-    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, threshold=threshold,
+    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, points, threshold=threshold,
                                                     local_threshold=local_threshold, window_m=window_m):
         further = _sampled(amplitude, grid, points - behind * towards)
         front |= own & (further.reshape(grid.shape) > amplitude)
@@ -109,7 +109,7 @@ def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, f
     points = grid.points().double().numpy()
     offsets = np.arange(0.5 * null_m, SIDELOBE_REACH * null_m, 0.5 * float(np.max(grid.voxel_m)))
     sidelobe, genuine = np.zeros(grid.size, bool), np.zeros(grid.size, bool)
-    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, threshold=threshold,
+    for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, points, threshold=threshold,
                                                     local_threshold=local_threshold, window_m=window_m):
         index = np.flatnonzero(own)
         tube = ndimage.maximum_filter(amplitude, size=SIDELOBE_TUBE_VOXELS)
@@ -123,11 +123,10 @@ def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, f
     return (sidelobe & ~genuine).reshape(grid.shape)
 
 
-def _view_detections(per_view_power, view_centres_m, grid, *, threshold, local_threshold, window_m):
+def _view_detections(per_view_power, view_centres_m, grid, points, *, threshold, local_threshold, window_m):
     """Per view: its amplitude (grid.shape), its own detection (bool, grid.shape: amplitude at or
     above :func:`detection_level` of that view's power) and the unit vectors (N, 3) from each
-    voxel centre towards the view's array centre."""
-    points = grid.points().double().numpy()  # (N, 3) voxel centres
+    voxel centre (``points`` (N, 3) [m], the grid's) towards the view's array centre."""
     window = window_voxels(window_m, grid)
     for power, centre in zip(per_view_power, np.asarray(view_centres_m, float)):
         amplitude = amplitude_of(power)
