@@ -144,3 +144,33 @@ def test_on_range_sidelobes_marks_a_weak_copy_on_a_bright_glints_line_of_sight()
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.5)], [above]).any()  # brighter than a sidelobe
     side_view = blob(0, 0.0375, 0.1)  # seen from +x with nothing in its way
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.1), side_view], [above, [1.0, 0.0, 0.0375]]).any()
+
+
+def test_specular_normals_are_the_power_weighted_mean_bisector():
+    """Against a slow per-voxel reference, and a closed form: four monostatic views on a cone
+    of half-angle a around n0 with equal power give m = cos(a) n0 (the sideways parts cancel);
+    a voxel only one view sees gets that view's bisector, of unit length."""
+    from rfsdf.radar.specular import specular_normals
+
+    grid = Grid((-0.01,) * 3, (0.01,) * 3, (2, 2, 2))
+    rng = np.random.default_rng(0)
+    tx, rx = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    power = rng.random((3, *grid.shape))
+    power[1:, 0, 0, 0] = 0.0
+    mean = specular_normals(power, tx, rx, grid)
+    for (i, j, k), point in zip(np.ndindex(grid.shape), grid.points().double().numpy()):
+        unit = lambda v: v / np.linalg.norm(v, axis=-1, keepdims=True)  # noqa: E731
+        bisectors = unit(unit(tx - point) + unit(rx - point))
+        expected = (power[:, i, j, k, None] * bisectors).sum(0) / power[:, i, j, k].sum()
+        np.testing.assert_allclose(mean[:, i, j, k], expected, rtol=1e-5, atol=1e-6)
+    assert np.linalg.norm(mean[:, 0, 0, 0]) == pytest.approx(1.0, rel=1e-5)
+
+    centre = grid.points().double().numpy()[0]
+    n0, a = np.array([0.0, 0.6, 0.8]), np.deg2rad(25)
+    side = np.cross(n0, [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    other = np.cross(n0, side)
+    views = np.array([centre + 5.0 * (np.cos(a) * n0 + np.sin(a) * (np.cos(t) * side + np.sin(t) * other))
+                      for t in np.arange(4) * np.pi / 2])
+    cone = specular_normals(np.ones((4, *grid.shape)), views, views, grid)[:, 0, 0, 0]
+    np.testing.assert_allclose(cone, np.cos(a) * n0, atol=1e-6)

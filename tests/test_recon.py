@@ -10,7 +10,7 @@ import torch
 
 from rfsdf.errors import RfsdfError
 from rfsdf.field import RadarField
-from rfsdf.geometry import Grid
+from rfsdf.geometry import Grid, gradient
 from rfsdf.materials import fresnel
 from rfsdf.radar import simulate
 from rfsdf.radar.scattering import lit_mask
@@ -59,7 +59,7 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
     for seed in range(3):
         cand = surface_candidates(sdf, points, sdf(points), float(grid.voxel_m[0]), 0.0013,
                                   torch.Generator().manual_seed(seed))
-        on, _ = project_to_surface(sdf, cand)
+        on, normals, _ = project_to_surface(sdf, cand)
         assert (on.norm(dim=1) - radius).abs().max() < 1e-6  # << lambda / 10 = 0.38 mm
         assert float(cand.area_m2.sum()) == pytest.approx(4 * math.pi * radius**2, rel=0.02)
         assert cand.spacing_m <= 0.0013
@@ -67,9 +67,34 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
         torch.testing.assert_close(cand.curvature, 2 / cand.anchors.norm(dim=1))
         # the areas follow the surface: d(4 pi r^2)/dr = 8 pi r at the samples of the refresh
         grown = torch.tensor(radius, requires_grad=True)
-        _, area = project_to_surface(lambda p, r=grown: p.norm(dim=1) - r, cand)
+        _, _, area = project_to_surface(lambda p, r=grown: p.norm(dim=1) - r, cand)
         area.sum().backward()
         assert float(grown.grad) == pytest.approx(8 * math.pi * radius, rel=0.02)
+
+
+def test_the_sample_normals_turn_with_the_surface():
+    """The normals project_to_surface returns are grad f / |grad f| at the anchors, differentiable
+    in f's parameters: for a sphere centred at c, d(n . w)/dc = -(I - n n^T) w / |p0 - c|."""
+    grid = _grid(20)
+    centre = torch.tensor([0.004, -0.003, 0.002], dtype=torch.float64, requires_grad=True)
+    sdf = lambda p: (p - centre.to(p)).norm(dim=1) - 0.03  # noqa: E731
+    points = grid.points().double()
+    with torch.no_grad():
+        cand = surface_candidates(sdf, points, sdf(points), float(grid.voxel_m[0]), 0.002,
+                                  torch.Generator().manual_seed(0))
+    _, normals, _ = project_to_surface(sdf, cand)
+    offset = cand.anchors - centre.detach()
+    expected_normals = offset / offset.norm(dim=1, keepdim=True)
+    torch.testing.assert_close(normals.detach(), expected_normals)
+    weights = torch.randn(normals.shape, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
+    (normals * weights).sum().backward()
+    n, w = expected_normals, weights
+    tangential = w - (w * n).sum(1, keepdim=True) * n
+    torch.testing.assert_close(centre.grad, -(tangential / offset.norm(dim=1, keepdim=True)).sum(0))
+    with torch.no_grad():  # no graph asked for: the same normals, detached
+        _, detached, _ = project_to_surface(sdf, cand)
+    assert not detached.requires_grad
+    torch.testing.assert_close(detached, expected_normals)
 
 
 def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_data):
@@ -217,6 +242,33 @@ def test_warm_start_points_near_the_surface_fit_a_small_object():
         with torch.no_grad():
             error[share] = float(field.sdf(surface).abs().mean())
     assert error[0.25] < 0.5 * error[0.0] and error[0.25] < 0.0025, error
+
+
+def test_the_warm_start_turns_only_the_faces_the_views_see_towards_them():
+    """A ball regressed onto its own SDF while the 'views' say every face looks up (+z): with
+    the facing term the upper half flattens towards +z, the lower half (facing away, cosine
+    < 0) keeps its normals, and without the term neither moves."""
+    target = lambda p: p.norm(dim=1) - 0.05  # noqa: E731
+    up = lambda p: torch.tensor([0.0, 0.0, 1.0]).expand(len(p), 3)  # noqa: E731
+    surface = 0.05 * torch.nn.functional.normalize(torch.randn(4000, 3, generator=torch.Generator().manual_seed(1)),
+                                                   dim=1)
+    upper, lower = surface[:, 2] > 0.02, surface[:, 2] < -0.02
+    near = surface
+    cosine = {}
+    for weight in (0.0, 0.1):
+        torch.manual_seed(0)
+        field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=4, depth=4, width=64)
+        fit_to_image(field, (-0.1,) * 3, (0.1,) * 3, target, None, steps=150, lr=1e-3, batch=2048,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=near,
+                     near_share=0.25, near_jitter_m=0.005, target_normal=up, normal_weight=weight)
+        normals = torch.nn.functional.normalize(gradient(field.sdf, surface), dim=1)
+        radial = torch.nn.functional.normalize(surface, dim=1)
+        cosine[weight] = {"up": float(normals[upper, 2].mean()), "radial_below": float(
+            (normals[lower] * radial[lower]).sum(1).mean()), "radial_above": float(
+            (normals[upper] * radial[upper]).sum(1).mean())}
+    assert cosine[0.1]["up"] > cosine[0.0]["up"] + 0.1, cosine
+    assert cosine[0.0]["radial_above"] > 0.95 and cosine[0.0]["radial_below"] > 0.95, cosine
+    assert cosine[0.1]["radial_below"] > 0.95, cosine
 
 
 def test_the_detection_target_closes_two_glints_of_one_object_into_one_volume():

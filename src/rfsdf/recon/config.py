@@ -53,6 +53,11 @@ class InitConfig(StrictModel):
     # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
     # centimetres off the objects (README, "Range-sidelobe blanking")
     blank_range_sidelobes: bool = True
+    # turn the faces the views see towards the power-weighted mean bisector of those views
+    # (radar.specular.specular_normals): the detection's boundary has the blur's shape, not
+    # the surface's, and its normals on the seen faces were 42 degrees off (12 with 0.01;
+    # README, "Normals from the views"); 0 turns it off
+    normal_weight: NonNegativeFloat = 0.01
 
     @field_validator("threshold", mode="before")
     @classmethod

@@ -14,10 +14,11 @@ so the prediction carries the carrier phase of every sample, the interference be
 the array's exact, shift-variant PSF and its sidelobes, and the same column normalisation
 as the observed image. Gradients reach theta through the sample positions (the phase of A
 and the geometry of the lobe) and their areas (which grow with the surface's curvature as it
-moves out, ``surface.project_to_surface``), and phi through the reflectivity Gamma_phi >= 0,
-which stands in for the Fresnel coefficient (a material head would feed a permittivity to it
-instead). Normals, facing and shadows are frozen between refreshes: shadows are traced
-against the network evaluated on the image grid (trilinear), a cheap stand-in for it.
+moves out) and their normals (which turn the lobe, ``surface.project_to_surface``), and phi
+through the reflectivity Gamma_phi >= 0, which stands in for the Fresnel coefficient (a
+material head would feed a permittivity to it instead). Facing and shadows are frozen
+between refreshes: shadows are traced against the network evaluated on the image grid
+(trilinear), a cheap stand-in for it.
 
 Why not a shell c = Gamma delta_sigma(f) dV on voxels (the textbook GeRaF rendering, and this
 project's earlier incoherent renderers): summed coherently across a flat surface it returns
@@ -124,7 +125,7 @@ class CoherentRenderer:
             raise RuntimeError("call refresh() before rendering")
         cand = self.candidates
         with torch.set_grad_enabled(torch.is_grad_enabled() and geometry):
-            points, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
+            points, normals, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
         amplitude = field.reflectivity(cand.anchors)
         targets = self.voxels[voxel_index]
         images = []
@@ -135,6 +136,6 @@ class CoherentRenderer:
                                           device=self.device))
                 continue
             gamma = amplitude[idx]
-            y = self.predict_data(v, points[idx], cand.normals[idx], area[idx], lambda _cos: gamma)
+            y = self.predict_data(v, points[idx], normals[idx], area[idx], lambda _cos: gamma)
             images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

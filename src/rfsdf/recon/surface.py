@@ -2,8 +2,8 @@
 
 Coherent rendering needs points *on* the surface, at most lambda/3 apart, with area weights
 and normals (a shell delta_sigma(f) around it cannot be summed coherently, see
-``recon/render.py``). The sampler here needs no double backward through the training graph
-(second derivatives only at the refresh, detached):
+``recon/render.py``). The sampler's positions and areas need no double backward through the
+training graph (second derivatives only at the refresh, detached); its normals take one:
 
 1. Candidates (no gradient, refreshed every few steps): every voxel the zero level set can
    cross is split into s^3 cells of edge h <= the requested spacing, one uniformly random
@@ -21,8 +21,14 @@ and normals (a shell delta_sigma(f) around it cannot be summed coherently, see
 Area weights follow from the coarea formula: the kept cells fill a slab of thickness
 h / |g0| around the surface, so each stands for an area h^2 |g0| (unbiased for any f, not
 only an exact SDF; the random point per cell makes the samples a jittered, not a regular,
-lattice, like the simulator's random surface samples). Normals are g0 / |g0|, frozen
-between refreshes.
+lattice, like the simulator's random surface samples).
+
+3. Normals (every step, differentiable): n = grad f(p0) / |grad f(p0)| at the anchors, so
+   the loss can turn a facet, not only move it. The specular lobe makes a glint's direction
+   depend on its normal far more than on its position (a facet tilted by 20 degrees sends its
+   mirror direction 40 degrees away), and a fit that could only move the samples along
+   frozen normals left the warm start's 40-degree normal errors where they were (README,
+   "Normals from the views"). It costs one double backward through f at the samples.
 
 Why this sampler: it finds every piece of surface the voxel grid sees, including thin
 ones and small components, with no mesh; on an analytic sphere its points lie on the
@@ -109,11 +115,13 @@ def surface_candidates(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centre
 
 
 def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: SurfaceCandidates, *,
-                       smoothing_m: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+                       smoothing_m: float = 0.0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Points p* = p0 - f(p0) g0 / |g0|^2 (Q, 3) [m] on the zero level set, one Newton step
-    along the frozen gradient, and the area each stands for (Q,) [m^2], A max(0, 1 + kappa V)
-    with V = -(f(p0) - f(p0) at the refresh) / |g0| how far the level set moved since the
-    areas were drawn: both differentiable in the parameters of ``sdf``.
+    along the frozen gradient; their outward unit normals grad f(p0) / |grad f(p0)| (Q, 3);
+    and the area each stands for (Q,) [m^2], A max(0, 1 + kappa V) with V = -(f(p0) - f(p0)
+    at the refresh) / |g0| how far the level set moved since the areas were drawn: all three
+    differentiable in the parameters of ``sdf`` when gradients are being recorded (the normals
+    by a double backward).
 
     With ``smoothing_m`` > 0 the gradient reaching f(p0) (the normal velocity the loss asks
     for at each sample) is replaced by its Gaussian-weighted local mean over that radius
@@ -122,13 +130,20 @@ def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: 
     a misplaced surface are not, and only the latter survive the average.
     """
     g = candidates.gradients
-    values = sdf(candidates.anchors)
+    recording = torch.is_grad_enabled()
+    with torch.enable_grad():
+        anchors = candidates.anchors.detach().requires_grad_(True)
+        values = sdf(anchors)
+        (grad,) = torch.autograd.grad(values.sum(), anchors, create_graph=recording)
+    normals = torch.nn.functional.normalize(grad, dim=1)
+    if not recording:
+        values, normals = values.detach(), normals.detach()
     if smoothing_m > 0:
         values = _SmoothedGradient.apply(values, candidates.anchors, smoothing_m)
     norm_sq = (g * g).sum(1).clamp(min=1e-12)
     moved = -(values - candidates.values) / norm_sq.sqrt()
     area = candidates.area_m2 * (1 + candidates.curvature * moved).clamp(min=0)
-    return candidates.anchors - (values / norm_sq)[:, None] * g, area
+    return candidates.anchors - (values / norm_sq)[:, None] * g, normals, area
 
 
 def _local_mean(values: torch.Tensor, points: torch.Tensor, radius_m: float) -> torch.Tensor:

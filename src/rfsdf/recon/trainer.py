@@ -30,6 +30,7 @@ from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.clean import CleanResult, clean_image
+from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
 from .losses import DATA_LOSSES, eikonal_loss
@@ -203,10 +204,15 @@ class Trainer:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
         threshold = detection_threshold(ic.threshold, clean)
         per_view = (clean.per_view_power if clean is not None else (self.observed**2).reshape(-1, *grid.shape))
-        exclude = excluded_voxels(ic, per_view.cpu().numpy(), self.problem.measurements.acquisition, grid, threshold)
+        acquisition = self.problem.measurements.acquisition
+        exclude = excluded_voxels(ic, per_view.cpu().numpy(), acquisition, grid, threshold)
+        normals = None
+        if ic.normal_weight > 0:
+            normals = specular_normals(per_view.cpu().numpy(), acquisition.tx_m.mean(1).cpu().numpy(),
+                                       acquisition.rx_m.mean(1).cpu().numpy(), grid)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
-                   near_share=ic.near_share, exclude=exclude,
+                   near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
                    eikonal_weight=ic.eikonal_weight, generator=self.generator, progress=self.progress)
 
     @torch.no_grad()

@@ -29,10 +29,9 @@ import numpy as np
 import torch
 from scipy import ndimage
 
-from ..geometry import Grid, interpolated_sdf
+from ..geometry import Grid, gradient, interpolated_sdf
 from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
-from .losses import eikonal_loss
 
 __all__ = ["detection_threshold", "excluded_voxels", "mask_signed_distance", "detection_target",
            "local_peak_amplitude", "fit_to_image", "warm_start"]
@@ -89,7 +88,7 @@ def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
 def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectivity: Callable | None, *,
                  steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                  near_m: torch.Tensor | None = None, near_share: float = 0.0, near_jitter_m: float = 0.0,
-                 progress: bool = False) -> float:
+                 target_normal: Callable | None = None, normal_weight: float = 0.0, progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
     Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
@@ -97,7 +96,11 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     ``near_jitter_m`` of random points of ``near_m`` (M, 3) [m] (points near the target's
     zero set, where small objects would otherwise get a few of the batch): f by clipped L1
     against ``target_sdf`` plus the Eikonal term (on a quarter of the batch), Gamma by L1
-    against ``target_reflectivity`` (None: f only). Returns the last clipped L1 residual of f [m].
+    against ``target_reflectivity`` (None: f only). With ``target_normal`` (points -> (N, 3)
+    mean bisectors m, :func:`~rfsdf.radar.specular.specular_normals`) the same quarter adds
+    ``normal_weight`` * |m| (1 - cos(grad f, m)) where the target's own normal faces m: the
+    faces the views see turn towards where the views say they face, the others are left alone.
+    Returns the last clipped L1 residual of f [m].
     """
     device = next(field.parameters()).device
     lower = torch.as_tensor(lower_m, dtype=torch.float32)
@@ -115,7 +118,12 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         with torch.no_grad():
             target = target_sdf(points)
         misfit = (f - target).abs().clamp(max=_CLIP_M).mean()
-        loss = misfit + eikonal_weight * eikonal_loss(field.sdf, points[: max(1, batch // 4)])
+        shaped = points[: max(1, batch // 4)]
+        grad = gradient(field.sdf, shaped, create_graph=True)
+        loss = misfit + eikonal_weight * ((grad.norm(dim=1) - 1.0) ** 2).mean()
+        if target_normal is not None and normal_weight > 0:
+            facing = gradient(target_sdf, shaped)
+            loss = loss + normal_weight * _facing_misfit(grad, target_normal(shaped), facing)
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
@@ -125,6 +133,14 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         optimizer.step()
         residual = float(misfit.detach())
     return residual
+
+
+def _facing_misfit(grad: torch.Tensor, bisector: torch.Tensor, target_grad: torch.Tensor) -> torch.Tensor:
+    """mean |m| (1 - cos(grad, m)) over the points (N,) where the target's own normal faces m
+    (gated by the fixed target, not by f, so a face turning away cannot drag its neighbours)."""
+    agreement = bisector.norm(dim=1)
+    cosine = (grad * bisector).sum(1) / (grad.norm(dim=1) * agreement).clamp(min=1e-12)
+    return (agreement * (1 - cosine) * ((target_grad * bisector).sum(1) > 0)).mean()
 
 
 def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
@@ -147,11 +163,14 @@ def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_t
 
 def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
-               near_share: float = 0.0, exclude: np.ndarray | None = None, progress: bool = False) -> float:
+               near_share: float = 0.0, exclude: np.ndarray | None = None, normals: np.ndarray | None = None,
+               normal_weight: float = 0.0, progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
     signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
-    amplitude (both interpolated between voxel centres). ``window_m`` [m] is the local window's edge.
-    Returns the last clipped L1 residual of f [m]."""
+    amplitude (both interpolated between voxel centres), and with ``normals`` ((3, *grid.shape)
+    mean bisectors, :func:`~rfsdf.radar.specular.specular_normals`) the seen faces' normals to
+    them (``normal_weight``, see :func:`fit_to_image`). ``window_m`` [m] is the local window's
+    edge. Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
     signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
                               closing_m=closing_m, exclude=exclude)
@@ -159,10 +178,15 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     peak = torch.from_numpy(local_peak_amplitude(power, window_voxels(window_m, grid))).to(device)
     voxel = float(np.max(grid.voxel_m))
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
+    target_normal = None
+    if normals is not None:
+        parts = [_interpolated(torch.from_numpy(np.ascontiguousarray(n)).to(device), grid) for n in normals]
+        target_normal = lambda p: torch.stack([part(p) for part in parts], dim=1)  # noqa: E731
     return fit_to_image(field, grid.lower_m, grid.upper_m, interpolated_sdf(distance, grid),
                         _interpolated(peak, grid), steps=steps, lr=lr, batch=batch,
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
-                        near_jitter_m=voxel, progress=progress)
+                        near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
+                        progress=progress)
 
 
 def _interpolated(values: torch.Tensor, grid: Grid) -> Callable:

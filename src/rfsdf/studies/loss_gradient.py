@@ -4,12 +4,13 @@ The chain the fit differentiates, for surface samples p0 frozen between refreshe
 anchors, frozen gradient g0 and area dA, ``recon/surface.py``):
 
     p*     = p0 - f_theta(p0) g0 / |g0|^2            (one Newton step onto f = 0)
-    c_v    = Gamma_theta(p0) * lobe(p*, n0; Tx_v, Rx_v) * dA      (``radar.scattering.scatter``)
+    n      = grad f_theta(p0) / |grad f_theta(p0)|   (the normal, turning with theta)
+    c_v    = Gamma_theta(p0) * lobe(p*, n; Tx_v, Rx_v) * dA       (``radar.scattering.scatter``)
     y_v    = A_v(p*) c_v                              (the sensing operator, its positions too)
     c^_v   = A_v^H y_v / ||A_v||^2 at data voxels    (the matched filter)
     L      = 1 - cos^2(|c^|, |c^_obs|)               (``amplitude_loss``, gain fitted)
 
-so dL/dtheta = sum dL/dp* . dp*/dtheta + dL/dGamma . dGamma/dtheta with dp*/dtheta =
+so dL/dtheta = sum dL/dp* . dp*/dtheta + dL/dn . dn/dtheta + dL/dGamma . dGamma/dtheta with dp*/dtheta =
 -g0/|g0|^2 df/dtheta (the normal velocity of the level set) and the operator's hand-written
 position gradient inside dL/dp*. Measured: for every parameter tensor of a small RadarField
 (float64) rendered by the coherent renderer on the tests' toy radar looking at a 2 cm
