@@ -64,6 +64,7 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
         assert float(cand.area_m2.sum()) == pytest.approx(4 * math.pi * radius**2, rel=0.02)
         assert cand.spacing_m <= 0.0013
         torch.testing.assert_close(cand.normals, torch.nn.functional.normalize(cand.anchors, dim=1))
+        torch.testing.assert_close(normals, cand.normals)  # f unchanged since the refresh
         torch.testing.assert_close(cand.curvature, 2 / cand.anchors.norm(dim=1))
         # the areas follow the surface: d(4 pi r^2)/dr = 8 pi r at the samples of the refresh
         grown = torch.tensor(radius, requires_grad=True)
