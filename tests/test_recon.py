@@ -254,13 +254,12 @@ def test_the_warm_start_turns_only_the_faces_the_views_see_towards_them():
     surface = 0.05 * torch.nn.functional.normalize(torch.randn(4000, 3, generator=torch.Generator().manual_seed(1)),
                                                    dim=1)
     upper, lower = surface[:, 2] > 0.02, surface[:, 2] < -0.02
-    near = surface
     cosine = {}
     for weight in (0.0, 0.1):
         torch.manual_seed(0)
         field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=4, depth=4, width=64)
         fit_to_image(field, (-0.1,) * 3, (0.1,) * 3, target, None, steps=150, lr=1e-3, batch=2048,
-                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=near,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=surface,
                      near_share=0.25, near_jitter_m=0.005, target_normal=up, normal_weight=weight)
         normals = torch.nn.functional.normalize(gradient(field.sdf, surface), dim=1)
         radial = torch.nn.functional.normalize(surface, dim=1)

@@ -15,7 +15,7 @@ import torch
 from ..geometry import gradient
 from ..registry import Registry
 
-__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "eikonal_loss"]
+__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "eikonal_loss", "eikonal_penalty"]
 
 DATA_LOSSES: Registry = Registry("data loss")
 
@@ -43,5 +43,9 @@ def power_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor) -> tor
 
 def eikonal_loss(sdf, points: torch.Tensor) -> torch.Tensor:
     """mean((|grad f| - 1)^2) at ``points`` (N, 3), differentiable (create_graph=True)."""
-    grad = gradient(sdf, points, create_graph=True)
+    return eikonal_penalty(gradient(sdf, points, create_graph=True))
+
+
+def eikonal_penalty(grad: torch.Tensor) -> torch.Tensor:
+    """mean((|grad| - 1)^2) of gradients (N, 3) already taken (for a caller that uses them twice)."""
     return ((grad.norm(dim=1) - 1.0) ** 2).mean()

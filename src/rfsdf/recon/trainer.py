@@ -204,11 +204,12 @@ class Trainer:
             power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
         threshold = detection_threshold(ic.threshold, clean)
         per_view = (clean.per_view_power if clean is not None else (self.observed**2).reshape(-1, *grid.shape))
+        per_view = per_view.cpu().numpy()
         acquisition = self.problem.measurements.acquisition
-        exclude = excluded_voxels(ic, per_view.cpu().numpy(), acquisition, grid, threshold)
+        exclude = excluded_voxels(ic, per_view, acquisition, grid, threshold)
         normals = None
         if ic.normal_weight > 0:
-            normals = specular_normals(per_view.cpu().numpy(), acquisition.tx_m.mean(1).cpu().numpy(),
+            normals = specular_normals(per_view, acquisition.tx_m.mean(1).cpu().numpy(),
                                        acquisition.rx_m.mean(1).cpu().numpy(), grid)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,

@@ -32,6 +32,7 @@ from scipy import ndimage
 from ..geometry import Grid, gradient, interpolated_sdf
 from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
+from .losses import eikonal_penalty
 
 __all__ = ["detection_threshold", "excluded_voxels", "mask_signed_distance", "detection_target",
            "local_peak_amplitude", "fit_to_image", "warm_start"]
@@ -120,7 +121,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         misfit = (f - target).abs().clamp(max=_CLIP_M).mean()
         shaped = points[: max(1, batch // 4)]
         grad = gradient(field.sdf, shaped, create_graph=True)
-        loss = misfit + eikonal_weight * ((grad.norm(dim=1) - 1.0) ** 2).mean()
+        loss = misfit + eikonal_weight * eikonal_penalty(grad)
         if target_normal is not None and normal_weight > 0:
             facing = gradient(target_sdf, shaped)
             loss = loss + normal_weight * _facing_misfit(grad, target_normal(shaped), facing)
