@@ -59,8 +59,10 @@ def test_surface_samples_of_a_sphere_lie_on_it_with_the_right_area():
     for seed in range(3):
         cand = surface_candidates(sdf, points, sdf(points), float(grid.voxel_m[0]), 0.0013,
                                   torch.Generator().manual_seed(seed))
-        on, normals, _ = project_to_surface(sdf, cand)
+        on, normals, area = project_to_surface(sdf, cand)
         assert (on.norm(dim=1) - radius).abs().max() < 1e-6  # << lambda / 10 = 0.38 mm
+        for evaluated, stored in zip((on, normals, area), cand.projected()):  # the frozen steps' shortcut
+            torch.testing.assert_close(stored, evaluated)
         assert float(cand.area_m2.sum()) == pytest.approx(4 * math.pi * radius**2, rel=0.02)
         assert cand.spacing_m <= 0.0013
         torch.testing.assert_close(cand.normals, torch.nn.functional.normalize(cand.anchors, dim=1))
@@ -291,7 +293,7 @@ def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_dat
 
     _, data = sphere_data
     settings = _config(steps=2, geometry_delay=0.0).model_dump()
-    settings["init"].update(method="mf", eikonal_weight=0.03)
+    settings["init"].update(method="mf", threshold=0.06, eikonal_weight=0.03)
     seen = {}
     monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
     trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / "run")
