@@ -120,12 +120,15 @@ class CoherentRenderer:
 
     def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True) -> torch.Tensor:
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
-        ``geometry=False``: differentiable in Gamma only (no graph through f)."""
+        ``geometry=False``: f as it was at the last refresh (the caller holds it fixed since),
+        differentiable in Gamma only, and f is not evaluated at all."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         cand = self.candidates
-        with torch.set_grad_enabled(torch.is_grad_enabled() and geometry):
+        if geometry:
             points, normals, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
+        else:
+            points, normals, area = cand.projected()
         amplitude = field.reflectivity(cand.anchors)
         targets = self.voxels[voxel_index]
         images = []

@@ -76,6 +76,13 @@ class SurfaceCandidates:
         """(Q, 3) outward unit normals g0 / |g0|."""
         return torch.nn.functional.normalize(self.gradients, dim=1)
 
+    def projected(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """What :func:`project_to_surface` returns for the f the candidates were drawn from,
+        without calling it: points (Q, 3) [m], normals (Q, 3), areas (Q,) [m^2], no graph.
+        For steps that hold f fixed (the fit's geometry delay), where f(p0) and its gradient
+        are still the ones stored at the refresh."""
+        return _newton_step(self.anchors, self.values, self.gradients), self.normals, self.area_m2
+
     def __len__(self) -> int:
         return len(self.anchors)
 
@@ -140,10 +147,15 @@ def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: 
         values, normals = values.detach(), normals.detach()
     if smoothing_m > 0:
         values = _SmoothedGradient.apply(values, candidates.anchors, smoothing_m)
-    norm_sq = (g * g).sum(1).clamp(min=1e-12)
-    moved = -(values - candidates.values) / norm_sq.sqrt()
+    moved = -(values - candidates.values) / g.norm(dim=1).clamp(min=1e-6)
     area = candidates.area_m2 * (1 + candidates.curvature * moved).clamp(min=0)
-    return candidates.anchors - (values / norm_sq)[:, None] * g, normals, area
+    return _newton_step(candidates.anchors, values, g), normals, area
+
+
+def _newton_step(anchors: torch.Tensor, values: torch.Tensor, gradients: torch.Tensor) -> torch.Tensor:
+    """p0 - f(p0) g0 / |g0|^2 (Q, 3) [m]: one Newton step to f = 0 along the frozen gradient."""
+    norm_sq = (gradients * gradients).sum(1).clamp(min=1e-12)
+    return anchors - (values / norm_sq)[:, None] * gradients
 
 
 def _local_mean(values: torch.Tensor, points: torch.Tensor, radius_m: float) -> torch.Tensor:
