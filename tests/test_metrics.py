@@ -107,7 +107,7 @@ def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):
         assert ball.observed_recall > 0.99
 
 
-def test_accuracy_is_split_by_whether_the_nearest_true_surface_is_observed(tmp_path):
+def test_accuracy_and_completeness_are_split_by_whether_the_true_surface_is_observed(tmp_path):
     """The left ball is reconstructed exactly and observed; the right one 3 mm too large and
     not observed: the split puts ~0 mm (the meshing error) near the seen surface and ~3 mm near the unseen one."""
     from rfsdf.geometry import Union
@@ -119,5 +119,10 @@ def test_accuracy_is_split_by_whether_the_nearest_true_surface_is_observed(tmp_p
     result = evaluate_scene(mesh, scene, observed=lambda p, n: p[:, 0] < 0, samples=20_000)
     assert result.accuracy_near_observed_mm < 0.5  # the mesh's own error at 1.6 mm cells
     assert result.accuracy_near_unobserved_mm == pytest.approx(3.0, abs=0.2)
+    assert result.completeness_observed_mm < 0.5 and result.completeness_unobserved_mm == pytest.approx(3.0, abs=0.2)
+    f = result.observed_fraction  # the two halves of the completeness make up the full Chamfer's
+    completeness = f * result.completeness_observed_mm + (1 - f) * result.completeness_unobserved_mm
+    accuracy = 2 * result.full.chamfer_l1_mm - completeness
+    assert accuracy == pytest.approx(0.5 * (result.accuracy_near_observed_mm + result.accuracy_near_unobserved_mm), abs=0.3)
     assert result.as_dict()["accuracy_near_unobserved_mm"] == result.accuracy_near_unobserved_mm
     assert evaluate_scene(mesh, scene, samples=2_000).accuracy_near_observed_mm is None

@@ -250,7 +250,9 @@ _ROWS = (("Chamfer-L1 [mm]", "full", "chamfer_l1_mm", ".2f"), ("F-score @ 5 mm",
          ("Hausdorff-95 [mm]", "full", "hausdorff95_mm", ".1f"), ("volumetric IoU", "full", "iou", ".3f"),
          ("observed Chamfer [mm]", "observed", "chamfer_l1_mm", ".2f"), ("observed F-score", "observed", "fscore", ".3f"),
          ("accuracy near seen [mm]", None, "accuracy_near_observed_mm", ".2f"),
-         ("accuracy near unseen [mm]", None, "accuracy_near_unobserved_mm", ".2f"))
+         ("accuracy near unseen [mm]", None, "accuracy_near_unobserved_mm", ".2f"),
+         ("completeness of seen [mm]", None, "completeness_observed_mm", ".2f"),
+         ("completeness of unseen [mm]", None, "completeness_unobserved_mm", ".2f"))
 
 
 def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:

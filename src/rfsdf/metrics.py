@@ -119,12 +119,19 @@ class SceneMetrics:
     # samples whose nearest true sample is observed, and of the others (surface no view sees)
     accuracy_near_observed_mm: float | None = None
     accuracy_near_unobserved_mm: float | None = None
+    # completeness split the same way: mean distance [mm] from the observed true samples to
+    # the prediction, and from the others; the full Chamfer is half the accuracy plus half of
+    # observed_fraction * the first + (1 - observed_fraction) * the second
+    completeness_observed_mm: float | None = None
+    completeness_unobserved_mm: float | None = None
 
     def as_dict(self) -> dict:
         return {"full": self.full.as_dict(), "observed": None if self.observed is None else self.observed.as_dict(),
                 "observed_fraction": self.observed_fraction,
                 "accuracy_near_observed_mm": self.accuracy_near_observed_mm,
                 "accuracy_near_unobserved_mm": self.accuracy_near_unobserved_mm,
+                "completeness_observed_mm": self.completeness_observed_mm,
+                "completeness_unobserved_mm": self.completeness_unobserved_mm,
                 "objects": {name: {**asdict(m), "found": m.found} for name, m in self.objects.items()}}
 
 
@@ -182,6 +189,8 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
         near_seen = seen[i_ab]
         split = {f"accuracy_near_{key}_mm": float(d_ab[mask].mean() * 1e3) if mask.any() else None
                  for key, mask in (("observed", near_seen), ("unobserved", ~near_seen))}
+        split.update({f"completeness_{key}_mm": float(d_ba[mask].mean() * 1e3) if mask.any() else None
+                      for key, mask in (("observed", seen), ("unobserved", ~seen))})
     objects = {}
     nearest_owner = owner[i_ab]
     for index, obj in enumerate(scene.objects):
