@@ -105,7 +105,7 @@ def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_d
     that draw fresh samples at each radius (4 draws): a sphere's RCS grows as r^2, so d log E /
     dr is about 2 / r = 100 / m. With frozen areas the gradient said -86 / m (samples crowd
     into the Fresnel zone as the sphere shrinks, each keeping its area): the fit pulled bright
-    balls inward (README, "The area term")."""
+    balls inward (docs/quality-history.md, "The area term")."""
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid(), spacing_m=data.acquisition.wavelength_m / 6)
     views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
@@ -208,8 +208,8 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
     a millimetre (the glint and the limb interfere; measured: local minima near 20, 21 and 22
     mm of about the same depth), and the fit stops in the nearest (21.3 mm here). It used to
     reach lambda/4 helped by a bias: with frozen sample areas the gradient said a sphere
-    brightens as it shrinks, and pulled every convex surface inward (README, "The area
-    term"). f moves from the first step (one uniform ball: Gamma has no brightness to
+    brightens as it shrinks, and pulled every convex surface inward (docs/quality-history.md,
+    "The area term"). f moves from the first step (one uniform ball: Gamma has no brightness to
     explain first)."""
     _, data = sphere_data
     trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),

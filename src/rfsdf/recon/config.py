@@ -52,7 +52,7 @@ class InitConfig(StrictModel):
     carve_front: bool = True
     # remove the detections that no view shows as more than a range sidelobe of a brighter
     # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
-    # centimetres off the objects (README, "Range-sidelobe blanking")
+    # centimetres off the objects (docs/quality-history.md, "Range-sidelobe blanking")
     blank_range_sidelobes: bool = True
     # turn the faces the views see towards the power-weighted mean bisector of those views
     # (radar.specular.specular_normals): the detection's boundary has the blur's shape, not
@@ -126,7 +126,7 @@ class TrainConfig(StrictModel):
     reflectivity_lr_scale: PositiveFloat = 10.0  # Gamma adapts faster than f: dim, don't delete
     # f is frozen for this share of the steps while Gamma adapts: started at the true scene,
     # the fit drifts 1.8 mm without the delay, 0.4 mm with 0.4; from the carved, blanked warm
-    # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (README, "Quality")
+    # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (docs/quality-history.md)
     geometry_delay: float = Field(0.7, ge=0, lt=1)
     weight_decay: NonNegativeFloat = 0.0
     checkpoint_every: PositiveInt = 50

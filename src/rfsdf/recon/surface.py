@@ -16,7 +16,7 @@ training graph (second derivatives only at the refresh, detached); its normals t
    surface moved along its normal. Without it a sphere's glint would *brighten* as it
    shrinks (its samples crowd into the Fresnel zone while each keeps its old area, amplitude
    ~ 1/R instead of ~ R), and a too-dim bright ball was pulled inward until it vanished
-   (README, "The area term").
+   (docs/quality-history.md, "The area term").
 
 Area weights follow from the coarea formula: the kept cells fill a slab of thickness
 h / |g0| around the surface, so each stands for an area h^2 |g0| (unbiased for any f, not
