@@ -40,6 +40,11 @@ def test_forward_adjoint_norms_match_dense(uniform, pattern, spreading):
     ref_x = A.conj().T @ y.numpy().ravel()
     np.testing.assert_allclose(op.adjoint(y, pts).numpy(), ref_x, atol=REL_TOL * np.abs(ref_x).max())
     np.testing.assert_allclose(op.column_norms_sq(pts).numpy(), (np.abs(A) ** 2).sum(0), rtol=REL_TOL)
+    ref_psf = A.conj().T @ A[:, 2]  # A^H A e_2: CLEAN's point response, factorised over Tx and Rx
+    np.testing.assert_allclose(op.point_response(pts[2], pts).numpy(), ref_psf, atol=REL_TOL * np.abs(ref_psf).max())
+    per_view = op.point_response(pts[2], pts, per_view=True)
+    assert per_view.shape == (acq.shape[0], len(pts))
+    torch.testing.assert_close(per_view.sum(0), op.point_response(pts[2], pts))
 
 
 def test_chunked_equals_unchunked_and_per_view_sums():

@@ -89,7 +89,8 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     The images are column-normalised MF images c_hat = A^H y / ||A||^2 on the voxel centres
     of ``grid``; ``window_m`` is the half-width of the minor cycle's PSF window [m]. The
     whole-grid images (dirty and major cycles) use the imaging ``method`` (see
-    :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact. The images
+    :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact
+(:meth:`~rfsdf.radar.operator.SensingOperator.point_response`, factorised over Tx and Rx). The images
     live on ``device`` (None: CPU); what is returned is on the CPU.
     """
     if not 0 < gain <= 1:
@@ -103,12 +104,12 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     seen = norms > 0
     safe = torch.where(seen, norms, torch.ones_like(norms))
 
-    def image(data, index=slice(None)):
-        if fast and isinstance(index, slice):
+    def image(data):
+        if fast:
             back_projected = fast_adjoint(acquisition, data.cpu(), voxels.cpu())[0].to(voxels.device)
         else:
-            back_projected = op.adjoint(data, voxels[index])
-        return torch.where(seen[index], back_projected / safe[index], 0.0)
+            back_projected = op.adjoint(data, voxels)
+        return torch.where(seen, back_projected / safe, 0.0)
 
     residual = image(y)
     stop = stop_fraction * float(residual.abs().max())
@@ -122,8 +123,8 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
                 break
             amplitude = gain * residual[q]
             window = _window(grid, q, radius).to(voxels.device)
-            unit = op.forward(voxels[q:q + 1], torch.ones(1, dtype=torch.complex64, device=voxels.device))
-            residual[window] -= amplitude * image(unit, window)
+            response = torch.where(seen[window], op.point_response(voxels[q], voxels[window]) / safe[window], 0.0)
+            residual[window] -= amplitude * response
             indices.append(q)
             amplitudes.append(complex(amplitude))
             if len(indices) % major_every == 0:

@@ -155,6 +155,26 @@ class SensingOperator:
         out = _ApplyAH.apply(y.to(_complex_dtype(points.dtype)), points, self, progress)
         return out if per_view else out.sum(dim=0)
 
+    def point_response(self, source: torch.Tensor, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
+        """A^H A e at ``points`` (Q, 3) [m] for a unit reflector at ``source`` (3,) [m]: (Q,)
+        complex, or (V, Q) with ``per_view``; equal to ``adjoint(forward(source, 1), points)``.
+
+        One point's data are rank one in (Tx, Rx) at each frequency, u_t w_r, so the T x R sum
+        of the adjoint factorises into a Tx sum times an Rx sum: (T + R) K Q work per view
+        instead of T R K Q (24x less for the 48 x 48 demo array; CLEAN's minor cycles).
+        """
+        points = as_points(points)
+        source = as_points(torch.as_tensor(source).reshape(1, 3)).to(points)
+        blocks: dict[int, list[torch.Tensor]] = {}
+        with torch.no_grad():
+            for views, pts in self._chunks(points.shape[0]):
+                u_src, w_src = self._factors(views, source)  # (v, K, T, 1), (v, K, R, 1)
+                u_conj, w_conj = self._factors(views, points[pts], conjugate=True)  # (v, K, T, q), (v, K, R, q)
+                response = ((u_conj * u_src).sum(2) * (w_conj * w_src).sum(2)).sum(1)  # (v, q)
+                blocks.setdefault(views.start, []).append(response)
+        out = torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
+        return out if per_view else out.sum(dim=0)
+
     def column_norms_sq(self, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
         """||A_q||^2 = K (sum_i a_i^2 / d_i^2)(sum_j b_j^2 / d_j^2): (Q,) float32, or (V, Q) with ``per_view``.
 
