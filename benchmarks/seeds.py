@@ -4,8 +4,10 @@ own random draws (`[train] seed`: the warm start's points, the views, voxels and
 samples of each step). Per seed: the warm start's and the fit's full, observed-surface and
 per-object scores; then their mean, standard deviation, min and max.
 
-Usage: python benchmarks/seeds.py [--seeds 0,1,2] [--out benchmarks/results/seeds.json]
+Usage: python benchmarks/seeds.py [--seeds 0,1,2] [--scene S] [--radar R] [--out PATH]
        [--recon '{"init": {"threshold": "auto"}}']   (reconstruction settings over the defaults)
+The default output is benchmarks/results/seeds.json for the demo's scene and radar, else
+seeds-SCENE-RADAR.json.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from demo_data import demo_data
 
+from rfsdf.demo import DemoSettings
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
@@ -45,12 +48,18 @@ def _spread(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seeds", default="0,1,2", help="Comma-separated fit seeds.")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/seeds.json"))
+    parser.add_argument("--scene", default=DemoSettings.scene)
+    parser.add_argument("--radar", default=DemoSettings.radar)
+    parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--recon", type=json.loads, default={}, help="ReconConfig overrides (JSON tables).")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
 
-    data = demo_data()
+    settings = DemoSettings(scene=args.scene, radar=args.radar)
+    default = (args.scene, args.radar) == (DemoSettings.scene, DemoSettings.radar)
+    out = args.out or Path("benchmarks/results/" + ("seeds.json" if default else
+                                                    f"seeds-{Path(args.scene).stem}-{Path(args.radar).stem}.json"))
+    data = demo_data(settings)
     demo, scene, grid = data.settings, data.scene, data.image.grid
     clean = clean_image(data.measurements, grid)
     print(f"CLEAN residual floor {clean.residual_floor():.4f}", flush=True)
@@ -66,10 +75,10 @@ def main() -> None:
         runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
                      "neural": _scores(score(mesh(fit.field))), "seconds_per_step": fit.seconds_per_step})
         print(to_json(runs[-1], indent=None), flush=True)
-    result = {"seeds": seeds, "recon": args.recon, "runs": runs, "warm_start": _spread([r["warm_start"] for r in runs]),
-              "neural": _spread([r["neural"] for r in runs])}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(to_json(result))
+    result = {"scene": args.scene, "radar": args.radar, "seeds": seeds, "recon": args.recon, "runs": runs,
+              "warm_start": _spread([r["warm_start"] for r in runs]), "neural": _spread([r["neural"] for r in runs])}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(to_json(result))
     print(to_json({k: result[k] for k in ("warm_start", "neural")}))
 
 
