@@ -90,8 +90,8 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     of ``grid``; ``window_m`` is the half-width of the minor cycle's PSF window [m]. The
     whole-grid images (dirty and major cycles) use the imaging ``method`` (see
     :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact
-(:meth:`~rfsdf.radar.operator.SensingOperator.point_response`, factorised over Tx and Rx). The images
-    live on ``device`` (None: CPU); what is returned is on the CPU.
+    (:meth:`~rfsdf.radar.operator.SensingOperator.point_response`, factorised over Tx and Rx).
+    The images live on ``device`` (None: CPU); what is returned is on the CPU.
     """
     if not 0 < gain <= 1:
         raise ValueError(f"CLEAN loop gain must be in (0, 1], got {gain}")
@@ -104,12 +104,13 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     seen = norms > 0
     safe = torch.where(seen, norms, torch.ones_like(norms))
 
+    def normalised(back_projected, index=slice(None)):  # c_hat = A^H y / ||A||^2, 0 where unseen
+        return torch.where(seen[index], back_projected / safe[index], 0.0)
+
     def image(data):
         if fast:
-            back_projected = fast_adjoint(acquisition, data.cpu(), voxels.cpu())[0].to(voxels.device)
-        else:
-            back_projected = op.adjoint(data, voxels)
-        return torch.where(seen, back_projected / safe, 0.0)
+            return normalised(fast_adjoint(acquisition, data.cpu(), voxels.cpu())[0].to(voxels.device))
+        return normalised(op.adjoint(data, voxels))
 
     residual = image(y)
     stop = stop_fraction * float(residual.abs().max())
@@ -123,8 +124,7 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
                 break
             amplitude = gain * residual[q]
             window = _window(grid, q, radius).to(voxels.device)
-            response = torch.where(seen[window], op.point_response(voxels[q], voxels[window]) / safe[window], 0.0)
-            residual[window] -= amplitude * response
+            residual[window] -= amplitude * normalised(op.point_response(voxels[q], voxels[window]), window)
             indices.append(q)
             amplitudes.append(complex(amplitude))
             if len(indices) % major_every == 0:

@@ -22,6 +22,7 @@ in float64 / complex128 are computed in double precision throughout (gradcheck).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import torch
 
@@ -165,14 +166,14 @@ class SensingOperator:
         """
         points = as_points(points)
         source = as_points(torch.as_tensor(source).reshape(1, 3)).to(points)
-        blocks: dict[int, list[torch.Tensor]] = {}
+
+        def response(views: slice, pts: slice) -> torch.Tensor:  # (v, q)
+            u_src, w_src = self._factors(views, source)  # (v, K, T, 1), (v, K, R, 1)
+            u_conj, w_conj = self._factors(views, points[pts], conjugate=True)  # (v, K, T, q), (v, K, R, q)
+            return ((u_conj * u_src).sum(2) * (w_conj * w_src).sum(2)).sum(1)
+
         with torch.no_grad():
-            for views, pts in self._chunks(points.shape[0]):
-                u_src, w_src = self._factors(views, source)  # (v, K, T, 1), (v, K, R, 1)
-                u_conj, w_conj = self._factors(views, points[pts], conjugate=True)  # (v, K, T, q), (v, K, R, q)
-                response = ((u_conj * u_src).sum(2) * (w_conj * w_src).sum(2)).sum(1)  # (v, q)
-                blocks.setdefault(views.start, []).append(response)
-        out = torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
+            out = self._per_view_points(points.shape[0], response)
         return out if per_view else out.sum(dim=0)
 
     def column_norms_sq(self, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
@@ -206,11 +207,20 @@ class SensingOperator:
     def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False) -> torch.Tensor:
         """A^H y per view: (V, Q)."""
         y_kf = y.permute(0, 3, 1, 2)  # (V, K, T, R)
-        blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A^H y", enabled=progress):
+
+        def back_project(views: slice, pts: slice) -> torch.Tensor:  # (v, q)
             u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
             z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
-            blocks.setdefault(views.start, []).append((u_conj * z).sum(dim=(1, 2)))  # (v, q)
+            return (u_conj * z).sum(dim=(1, 2))
+
+        return self._per_view_points(points.shape[0], back_project, desc="A^H y", progress=progress)
+
+    def _per_view_points(self, num_points: int, compute: Callable[[slice, slice], torch.Tensor], *,
+                         desc: str = "", progress: bool = False) -> torch.Tensor:
+        """(V, Q): ``compute(views, points)`` (v, q) on each memory-budget chunk, put together."""
+        blocks: dict[int, list[torch.Tensor]] = {}
+        for views, pts in progress_bar(list(self._chunks(num_points)), desc=desc, enabled=progress):
+            blocks.setdefault(views.start, []).append(compute(views, pts))
         return torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
 
     @torch.no_grad()
