@@ -173,3 +173,21 @@ def test_grid_points_are_voxel_centres():
     torch.testing.assert_close(pts[-1], torch.tensor([0.75, 1.75, 2.75]))
     torch.testing.assert_close(grid.points(start=10, stop=20), pts[10:20])
     np.testing.assert_allclose(grid.voxel_m, [0.5, 0.5, 0.5])
+
+
+def test_trilinear_is_exact_for_linear_fields_and_clamps_at_the_box(rng):
+    grid = geo.Grid((0, 0, 0), (1, 2, 3), (4, 5, 6))
+    centres = grid.points(dtype=torch.float64)
+    slopes = torch.tensor([[0.3, -1.2, 2.0], [1.0, 0.5, -0.7]], dtype=torch.float64)  # two linear fields
+    values = (centres @ slopes.T + torch.tensor([0.1, -2.0], dtype=torch.float64)).T.reshape(2, *grid.shape)
+    lookup = geo.trilinear(values, grid)
+    axes = grid.axes()
+    first, last = (torch.tensor([a[i] for a in axes]) for i in (0, -1))
+    inner = first + (last - first) * torch.rand(200, 3, dtype=torch.float64, generator=rng)  # between the outer voxel centres
+    expected = inner @ slopes.T + torch.tensor([0.1, -2.0], dtype=torch.float64)
+    torch.testing.assert_close(lookup(inner), expected)
+    torch.testing.assert_close(geo.trilinear(values[1], grid)(inner), expected[:, 1])  # one channel alone
+    beyond = torch.tensor([[-5.0, 1.0, 1.5], [0.01, 1.0, 1.5]], dtype=torch.float64)  # both read the x = first face
+    clamped = lookup(beyond)
+    torch.testing.assert_close(clamped[0], clamped[1])
+    assert lookup(inner.float()).dtype == torch.float32

@@ -10,7 +10,7 @@ from .csg import (
     complement, difference, intersection, smooth_intersection, smooth_union, union,
 )
 from .differential import eikonal_residual, gradient, gradient_and_curvature, normals
-from .grid import Grid, interpolated_sdf
+from .grid import Grid, interpolated_sdf, trilinear
 from .mesh_sdf import MeshSDF, load_watertight_mesh
 from .occupancy import occupancy
 from .primitives import Box, CappedCylinder, Capsule, Cylinder, HalfSpace, Sphere, Torus
@@ -18,7 +18,7 @@ from .tracing import TraceResult, sphere_trace
 from .transforms import Rotate, Scale, Translate, rotation_matrix
 
 __all__ = [
-    "SDF", "as_points", "Grid", "interpolated_sdf",
+    "SDF", "as_points", "Grid", "interpolated_sdf", "trilinear",
     "Sphere", "Box", "HalfSpace", "Cylinder", "CappedCylinder", "Torus", "Capsule", "MeshSDF",
     "load_watertight_mesh",
     "Union", "Intersection", "Complement", "SmoothUnion", "SmoothIntersection",

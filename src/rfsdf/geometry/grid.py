@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-__all__ = ["Grid", "interpolated_sdf"]
+__all__ = ["Grid", "interpolated_sdf", "trilinear"]
 
 
 @dataclass(frozen=True)
@@ -64,21 +64,37 @@ class Grid:
         return (lower + (idx.double() + 0.5) * voxel).to(dtype)
 
 
+def trilinear(values: torch.Tensor, grid: Grid):
+    """Callable p (N, 3) [m] -> (N,) for voxel-centre ``values`` of shape grid.shape, or
+    (N, C) for (C, *grid.shape), in the points' dtype: trilinear interpolation at p clamped into the box (values
+    beyond the outer voxel centres are the outer ones'). One lookup serves all C channels."""
+    lower = torch.tensor(grid.lower_m, dtype=values.dtype, device=values.device)
+    upper = torch.tensor(grid.upper_m, dtype=values.dtype, device=values.device)
+    channels = values.shape[:-3]
+    volume = values.reshape(1, -1, *grid.shape)
+
+    def lookup(points: torch.Tensor) -> torch.Tensor:
+        inside = torch.minimum(torch.maximum(points.to(values.dtype), lower), upper)
+        normalised = 2 * (inside - lower) / (upper - lower) - 1  # (x, y, z) in [-1, 1]
+        # grid_sample indexes the last three dims as (z, y, x) = (W, H, D) order reversed.
+        coords = normalised.flip(-1).reshape(1, -1, 1, 1, 3)
+        value = torch.nn.functional.grid_sample(volume, coords, mode="bilinear", padding_mode="border",
+                                                align_corners=False).reshape(volume.shape[1], -1)
+        return (value.T if channels else value[0]).to(points.dtype)
+
+    return lookup
+
+
 def interpolated_sdf(values_m: torch.Tensor, grid: Grid):
     """Callable p (N, 3) [m] -> (N,) [m]: trilinear interpolation of voxel-centre SDF values
     (grid.shape) inside the box, plus the distance to the box outside it (a bound)."""
     lower = torch.tensor(grid.lower_m, dtype=values_m.dtype, device=values_m.device)
     upper = torch.tensor(grid.upper_m, dtype=values_m.dtype, device=values_m.device)
-    volume = values_m.reshape(1, 1, *grid.shape)
+    inside_value = trilinear(values_m, grid)
 
     def sdf(points: torch.Tensor) -> torch.Tensor:
         p = points.to(values_m.dtype)
-        inside = torch.minimum(torch.maximum(p, lower), upper)
-        normalised = 2 * (inside - lower) / (upper - lower) - 1  # (x, y, z) in [-1, 1]
-        # grid_sample indexes the last three dims as (z, y, x) = (W, H, D) order reversed.
-        coords = normalised.flip(-1).reshape(1, -1, 1, 1, 3)
-        value = torch.nn.functional.grid_sample(volume, coords, mode="bilinear", padding_mode="border",
-                                                align_corners=False).reshape(-1)
-        return (value + (p - inside).norm(dim=1)).to(points.dtype)
+        outside = (p - torch.minimum(torch.maximum(p, lower), upper)).norm(dim=1)
+        return (inside_value(p) + outside).to(points.dtype)
 
     return sdf

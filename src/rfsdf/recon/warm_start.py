@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from scipy import ndimage
 
-from ..geometry import Grid, gradient, interpolated_sdf
+from ..geometry import Grid, gradient, interpolated_sdf, trilinear
 from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
 from .losses import eikonal_penalty
@@ -181,17 +181,10 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
     target_normal = None
     if normals is not None:
-        parts = [_interpolated(torch.from_numpy(np.ascontiguousarray(n)).to(device), grid) for n in normals]
-        target_normal = lambda p: torch.stack([part(p) for part in parts], dim=1)  # noqa: E731
+        target_normal = trilinear(torch.from_numpy(np.ascontiguousarray(normals)).to(device), grid)
     return fit_to_image(field, grid.lower_m, grid.upper_m, interpolated_sdf(distance, grid),
-                        _interpolated(peak, grid), steps=steps, lr=lr, batch=batch,
+                        trilinear(peak, grid), steps=steps, lr=lr, batch=batch,
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                         near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
                         progress=progress)
 
-
-def _interpolated(values: torch.Tensor, grid: Grid) -> Callable:
-    """Trilinear interpolation of voxel-centre values inside the box (clamped at its faces)."""
-    inside = interpolated_sdf(values, grid)
-    lower, upper = (torch.tensor(b, device=values.device) for b in (grid.lower_m, grid.upper_m))
-    return lambda p: inside(torch.minimum(torch.maximum(p, lower), upper))
