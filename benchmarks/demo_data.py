@@ -19,8 +19,10 @@ class DemoData:
     image: Image
 
 
-def demo_data(settings: DemoSettings = DemoSettings()) -> DemoData:
-    """Simulate and image the demo scene exactly as ``rfsdf demo`` does (about 40 s on 2 cores)."""
+def demo_data(settings: DemoSettings | None = None) -> DemoData:
+    """Simulate and image the demo scene exactly as ``rfsdf demo`` does (about 40 s on 2 cores);
+    ``settings`` None: the demo's defaults."""
+    settings = settings or DemoSettings()
     scene = load_scene(settings.scene)
     measurements = simulate(scene, load_radar(settings.radar), seed=settings.seed,
                             max_samples=settings.max_surface_samples)

@@ -138,7 +138,6 @@ class CoherentRenderer:
                 images.append(torch.zeros(len(voxel_index), dtype=torch.promote_types(points.dtype, torch.complex64),
                                           device=self.device))
                 continue
-            gamma = amplitude[idx]
-            y = self.predict_data(v, points[idx], normals[idx], area[idx], lambda _cos: gamma)
+            y = self.predict_data(v, points[idx], normals[idx], area[idx], lambda _cos, gamma=amplitude[idx]: gamma)
             images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

@@ -82,7 +82,7 @@ def plot(result: Result, path) -> None:
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
     styles = dict(zip(result.schedules, ("-", "--", ":")))
     for name, rows in result.radius_error_mm.items():
-        for i, (start, curve) in enumerate(zip(result.start_errors_mm, rows)):
+        for i, curve in enumerate(rows):  # one curve per start error
             left.plot(np.arange(1, len(curve) + 1), curve, styles[name], color=f"C{i}",
                       label=f"{name}" if i == 0 else None)
     for sign in (-1, 1):
