@@ -99,6 +99,10 @@ BAD_SCENES = {
     "material": ('material = "unobtainium"\nshape = { type = "sphere", radius_m = 0.1 }', "unknown material"),
     "type": ('shape = { type = "blob", radius_m = 0.1 }', r"objects\[0\]\.shape.*blob"),
     "typo": ('shape = { type = "sphere", radius = 0.1 }', "radius"),
+    "roughness": ('shape = { type = "sphere", radius_m = 0.1 }\nroughness = { rms_m = 1e-4, correlation_m = 0 }',
+                  r"objects\[0\]\.roughness\.correlation_m.*greater than 0"),
+    "roughness key": ('shape = { type = "sphere", radius_m = 0.1 }\nroughness = { rms = 1e-4, correlation_m = 3e-3 }',
+                      r"objects\[0\]\.roughness.*rms"),
 }
 
 

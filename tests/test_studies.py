@@ -132,3 +132,15 @@ def test_super_resolution_psf_follows_c_over_2b_and_the_fit_beats_the_threshold(
         assert 0.6 < p["cross_psf_mm"] / p["cross_resolution_mm"] < 1.3
         assert p["fit_chamfer_mm"] < p["start_chamfer_mm"] and 2 * p["fit_chamfer_mm"] < p["mf_chamfer_mm"]
     assert points[0]["range_psf_mm"] > 3 * points[1]["range_psf_mm"]
+
+
+def test_roughness_rayleigh_factor_and_diffuse_return_of_the_surface_not_the_sampling(results):
+    r = results["roughness"]["result"]
+    assert r["mean_return_factor"][0] == pytest.approx(r["rayleigh_factor"][0], abs=0.1)  # 6 realisations
+    row = {(o["surface"], o["placement"], o["samples_per_wavelength"]): o for o in r["oblique"]}
+    noisy, fine = row[("smooth", "random", 3)], row[("smooth", "random", 12)]
+    assert noisy["sampling_difference_db"] > noisy["return_db"] - 3  # at lambda/3 the smooth return is the sampling's
+    assert noisy["return_db"] > fine["return_db"] + 6  # ... and far above what it converges to
+    assert row[("smooth", "stratified", 3)]["sampling_difference_db"] < noisy["sampling_difference_db"] - 10
+    rough, smooth = row[("rms 0.5 mm", "stratified", 12)], row[("smooth", "stratified", 12)]
+    assert rough["return_db"] > smooth["return_db"] + 6 and rough["sampling_difference_db"] < rough["return_db"] - 20

@@ -17,8 +17,10 @@ from . import geometry as geo
 from .config import preset_names, read_toml, resolve_preset, validate
 from .errors import RfsdfError
 from .geometry.differential import gradient
+from .geometry.surface_sampling import stratified_surface_points
 from .materials import Material
 from .mesh import extract_mesh
+from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
 
 __all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_presets", "build_shape"]
@@ -36,12 +38,14 @@ def scene_presets() -> list[str]:
 
 @dataclass(frozen=True)
 class SceneObject:
-    """One object: its name, SDF (scene frame, metres), material and, for mesh objects, the mesh."""
+    """One object: its name, SDF (scene frame, metres), material, for mesh objects the mesh,
+    and the roughness of its surface (None: smooth at the wavelength)."""
 
     name: str
     sdf: geo.SDF
     material: Material
     mesh: trimesh.Trimesh | None = None
+    roughness: Roughness | None = None
 
 
 @dataclass(frozen=True)
@@ -129,7 +133,8 @@ class Scene:
         for obj in spec.objects:
             sdf = build_shape(obj.shape, base_dir)
             mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and obj.shape.transform is None else None
-            self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh))
+            roughness = obj.roughness.build() if obj.roughness is not None else None
+            self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh, roughness))
         self._meshes: list[trimesh.Trimesh] | None = None
         # (sdf, bounding sphere or None) per object, the unbounded (cheap) ones first, for sdf()
         bounded = [(o.sdf, o.sdf.bounding_sphere()) for o in self.objects]
@@ -206,24 +211,25 @@ class Scene:
         """All object meshes in one (objects are expected not to overlap)."""
         return trimesh.util.concatenate(self.object_meshes())
 
-    def sample_surface(self, spacing_m: float, *, seed: int = 0, max_samples: int | None = None) -> SurfaceSamples:
-        """Random area-uniform samples of every object's surface, about ``spacing_m`` [m] apart.
+    def sample_surface(self, spacing_m: float, *, seed: int = 0, max_samples: int | None = None,
+                       stratified: bool = False) -> SurfaceSamples:
+        """Random area-uniform samples of every object's surface, about ``spacing_m`` [m] apart;
+        ``stratified``: one in each stratum of equal area instead of independent
+        (:func:`~rfsdf.geometry.surface_sampling.stratified_surface_points`).
 
         Analytic surfaces are sampled on their mesh and projected onto the exact zero set
         by Newton steps; normals come from grad f. Samples buried inside another object
-        are dropped. With ``max_samples`` the spacing grows so that the count fits.
+        are dropped. With ``max_samples`` the spacing grows so that the count fits
+        (:meth:`sample_spacing`).
         """
-        if not spacing_m > 0:
-            raise ValueError(f"spacing_m must be positive, got {spacing_m}")
+        spacing_m = self.sample_spacing(spacing_m, max_samples)
         meshes = self.object_meshes()
-        total_area = sum(m.area for m in meshes)
-        if max_samples is not None:
-            spacing_m = max(spacing_m, float(np.sqrt(total_area / max_samples)))
         rng = np.random.default_rng(seed)
         parts = []
         for index, (obj, mesh) in enumerate(zip(self.objects, meshes)):
             count = max(1, int(round(mesh.area / spacing_m**2)))
-            pts, faces = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(2**31)))
+            sampler = stratified_surface_points if stratified else trimesh.sample.sample_surface
+            pts, faces = sampler(mesh, count, seed=int(rng.integers(2**31)))
             p = torch.as_tensor(pts, dtype=torch.float64)
             if obj.mesh is None:
                 for _ in range(_NEWTON_STEPS):
@@ -245,6 +251,28 @@ class Scene:
             object_index=torch.cat([torch.full((len(p),), i) for p, _, _, i in parts])[keep],
         )
 
+    def sample_spacing(self, spacing_m: float, max_samples: int | None = None) -> float:
+        """The spacing [m] :meth:`sample_surface` uses: ``spacing_m``, or wider where the
+        surface would otherwise take more than ``max_samples`` samples."""
+        if not spacing_m > 0:
+            raise ValueError(f"spacing_m must be positive, got {spacing_m}")
+        if max_samples is None:
+            return float(spacing_m)
+        return max(float(spacing_m), float(np.sqrt(sum(m.area for m in self.object_meshes()) / max_samples)))
+
+    def rough_points(self, samples: SurfaceSamples) -> torch.Tensor:
+        """(N, 3) [m]: the samples moved along their normals by their object's height field
+        (:class:`~rfsdf.roughness.Roughness`, keyed by the object's name, so every sampling
+        sees the same surface); samples of smooth objects stay where they are."""
+        points = samples.points.clone()
+        for index, obj in enumerate(self.objects):
+            if obj.roughness is None:
+                continue
+            mine = (samples.object_index == index).nonzero().squeeze(1)
+            height = obj.roughness.height(samples.points[mine], obj.name).to(points)
+            points[mine] += height[:, None] * samples.normals[mine]
+        return points
+
     def summary(self) -> str:
         """A few lines describing the scene for people."""
         lines = [f"scene {self.name!r}: bounds {self.lower_m.tolist()} .. {self.upper_m.tolist()} m, "
@@ -252,8 +280,10 @@ class Scene:
         for obj, spec in zip(self.objects, self.spec.objects):
             eps = obj.material.permittivity(79e9) if obj.material.valid_ghz[0] <= 79 <= obj.material.valid_ghz[1] else None
             eps_text = "PEC" if obj.material.pec else (f"eps(79 GHz)={eps.real:.2f}{eps.imag:+.2f}j" if eps else "")
+            rough = obj.roughness
+            rough_text = f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation" if rough else ""
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
-                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}")
+                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}")
         return "\n".join(lines)
 
 

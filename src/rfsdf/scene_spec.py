@@ -1,8 +1,9 @@
 """The TOML scene format, as pydantic models: what a scene file may say and how it is checked.
 
 A scene file has a ``name``, ``[bounds]`` (lower_m, upper_m), optional custom
-``[[materials]]`` and a list of ``[[objects]]``, each with a ``name``, a ``material``
-and a ``shape`` table whose ``type`` picks a primitive, a mesh file or a CSG node.
+``[[materials]]`` and a list of ``[[objects]]``, each with a ``name``, a ``material``,
+a ``shape`` table whose ``type`` picks a primitive, a mesh file or a CSG node, and
+optionally a ``roughness`` table (rms_m, correlation_m, seed; smooth without it).
 Every shape may carry a ``transform`` (translate_m, rotate_axis, rotate_rad, scale).
 """
 
@@ -14,8 +15,10 @@ from pydantic import Field, PositiveFloat, field_validator, model_validator
 
 from .config import Name, StrictModel
 from .materials import Material, get_material
+from .roughness import Roughness
 
-__all__ = ["SceneSpec", "ObjectSpec", "ShapeSpec", "MaterialSpec", "BoundsSpec", "TransformSpec"]
+__all__ = ["SceneSpec", "ObjectSpec", "ShapeSpec", "MaterialSpec", "BoundsSpec", "TransformSpec",
+           "RoughnessSpec"]
 
 Vec3 = tuple[float, float, float]
 PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
@@ -140,10 +143,22 @@ class BoundsSpec(StrictModel):
         return self
 
 
+class RoughnessSpec(StrictModel):
+    """A Gaussian random height field on the object's surface (:class:`rfsdf.roughness.Roughness`)."""
+
+    rms_m: float = Field(ge=0.0)
+    correlation_m: PositiveFloat
+    seed: int = 0
+
+    def build(self) -> Roughness:
+        return Roughness(self.rms_m, self.correlation_m, self.seed)
+
+
 class ObjectSpec(StrictModel):
     name: str
     material: str
     shape: ShapeSpec
+    roughness: RoughnessSpec | None = None
 
 
 class SceneSpec(StrictModel):

@@ -71,25 +71,42 @@ def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tup
     return y + (sigma / np.sqrt(2)) * noise.to(y.dtype), sigma
 
 
+def _require_resolved_roughness(scene: Scene, spacing_m: float) -> None:
+    """ValueError naming the object when a rough surface's heights vary faster than samples
+    ``spacing_m`` [m] apart resolve (more than half its correlation length)."""
+    for obj in scene.objects:
+        if obj.roughness is not None and spacing_m > obj.roughness.correlation_m / 2:
+            raise ValueError(f"scene {scene.name!r}: object {obj.name!r}: roughness correlation_m "
+                             f"{obj.roughness.correlation_m * 1e3:.3g} mm needs surface samples at most "
+                             f"{obj.roughness.correlation_m * 500:.3g} mm apart; the simulator samples "
+                             f"{spacing_m * 1e3:.3g} mm apart (a longer correlation, or a finer spacing_m "
+                             "with more max_samples)")
+
+
 def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
+    samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, device=None, progress: bool = False,
+    shadows: bool = True, stratified: bool = False, device=None, progress: bool = False,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
-    The surface is sampled ``lambda / SAMPLES_PER_WAVELENGTH`` apart (``spacing_m``
-    overrides; at most ``max_samples`` samples). Noise is added at ``radar.snr_db`` (None:
+    The surface is sampled ``lambda / samples_per_wavelength`` apart (``spacing_m``
+    overrides; at most ``max_samples`` samples; rough objects need at most half their
+    correlation length, else ValueError); ``stratified`` places them one per stratum of equal
+    area (:meth:`~rfsdf.scene.Scene.sample_surface`), which cuts the quadrature's random
+    error on faces turned away from the radar (study ``roughness``). Noise is added at ``radar.snr_db`` (None:
     noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
     """
     acq = radar.acquisition()
-    spacing = spacing_m or acq.wavelength_m / SAMPLES_PER_WAVELENGTH
-    samples = scene.sample_surface(spacing, seed=seed, max_samples=max_samples).to(device or "cpu")
+    spacing = scene.sample_spacing(spacing_m or acq.wavelength_m / samples_per_wavelength, max_samples)
+    _require_resolved_roughness(scene, spacing)
+    samples = scene.sample_surface(spacing, seed=seed, stratified=stratified).to(device or "cpu")
     c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
                             diffuse_weight=diffuse_weight, polarization=polarization, shadows=shadows)
-    y = SensingOperator(acq).forward(samples.points, c, progress=progress).cpu()
+    y = SensingOperator(acq).forward(scene.rough_points(samples), c, progress=progress).cpu()
     noise_std = None
     if radar.snr_db is not None:
         y, noise_std = add_noise(y, radar.snr_db, torch.Generator().manual_seed(seed + 1))
