@@ -48,6 +48,7 @@ from .radar import (
 )
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
+from .radar.simulate import SAMPLES_PER_WAVELENGTH
 from .recon import Problem, ReconConfig, Trainer
 from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import load_scene
@@ -66,6 +67,8 @@ class DemoSettings:
     voxel_m: float = 0.006
     seed: int = 0
     max_surface_samples: int = 150_000  # of the simulator
+    samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH  # of the simulator's surface
+    stratified_samples: bool = False  # the simulator's samples one per stratum of equal area
     recon: dict = field(default_factory=dict)  # ReconConfig overrides (nested tables)
     mesh_resolution: int = 128
     metric_samples: int = 50_000
@@ -168,6 +171,8 @@ def run_demo(out, settings: DemoSettings = DemoSettings(), *, device: str = "aut
         measurements = read_measurements(out / "measurements.h5")
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
+                                samples_per_wavelength=settings.samples_per_wavelength,
+                                stratified=settings.stratified_samples,
                                 device=device, progress=progress)
         write_measurements(out / "measurements.h5", measurements)
     lap("simulate_s")
