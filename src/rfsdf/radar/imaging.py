@@ -24,7 +24,7 @@ __all__ = ["IMAGING_METHODS", "FAST_MIN_FREQUENCIES", "imaging_method", "Image",
 IMAGING_METHODS = ("auto", "exact", "fast")
 # The exact adjoint costs K vectorised complex multiply-adds per pair and voxel (GEMMs), the
 # fast one a scalar interpolation: on 2 cores fast is 0.74-1.8x exact at 16 frequencies
-# (small grid - demo grid), 3.4x at 64 and 12.1x at 256 (benchmarks/fast_imaging.py), so
+# (small grid - demo grid), 3.4-3.9x at 64 and 12-17x at 256 (benchmarks/fast_imaging.py), so
 # auto = fast from 32 on.
 FAST_MIN_FREQUENCIES = 32
 
