@@ -26,10 +26,11 @@ __all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise
 # The data are a Monte Carlo sum over random surface samples, and its error is a speckle that
 # no other sampling reproduces: two samplings of the 2 cm ball (6 views) differ by 21 % of the
 # MF amplitude energy at lambda/3, 5 % at lambda/6 and 1.2 % at lambda/12 (error ~ spacing^2).
-# That speckle is, today, the scenes' only diffuse return: at lambda/6 the oblique faces of
-# the wood block and the concrete ring fade and every method loses them (README, Quality).
-# lambda/3 stays the default until the lobe has a roughness model whose power does not
-# depend on the sampling.
+# That speckle is the smooth scenes' only diffuse return: at lambda/6, or with stratified
+# samples, the oblique faces of the wood block and the concrete ring fade (README, "Rough
+# surfaces and the simulator's quadrature"). Stated roughness (rfsdf.roughness) gives a
+# diffuse return that does not depend on the sampling; random samples at lambda/3 stay the
+# default until the README's tables are re-measured on stratified samples of rough scenes.
 SAMPLES_PER_WAVELENGTH = 3
 
 def surface_reflectivity(
