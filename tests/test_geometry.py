@@ -183,7 +183,8 @@ def test_trilinear_is_exact_for_linear_fields_and_clamps_at_the_box(rng):
     lookup = geo.trilinear(values, grid)
     axes = grid.axes()
     first, last = (torch.tensor([a[i] for a in axes]) for i in (0, -1))
-    inner = first + (last - first) * torch.rand(200, 3, dtype=torch.float64, generator=rng)  # between the outer voxel centres
+    # points between the outer voxel centres
+    inner = first + (last - first) * torch.rand(200, 3, dtype=torch.float64, generator=rng)
     expected = inner @ slopes.T + torch.tensor([0.1, -2.0], dtype=torch.float64)
     torch.testing.assert_close(lookup(inner), expected)
     torch.testing.assert_close(geo.trilinear(values[1], grid)(inner), expected[:, 1])  # one channel alone

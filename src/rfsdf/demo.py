@@ -139,14 +139,16 @@ def _claim(out: Path, settings: DemoSettings) -> None:
         tmp.write_text(to_json(wanted))
 
 
-def run_demo(out, settings: DemoSettings = DemoSettings(), *, device: str = "auto",
+def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
              log: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
-    """Run the pipeline into folder ``out``; returns (and writes as metrics.json) the results.
+    """Run the pipeline into folder ``out`` with ``settings`` (None: the demo's defaults);
+    returns (and writes as metrics.json) the results.
 
     ``device`` (auto, cpu, cuda) runs every stage there, the fit included (it overrides the
     settings' ``train.device``); it is not a setting of the run: a demo resumes on any device.
     """
     out = Path(out)
+    settings = settings or DemoSettings()
     device = resolve_device(device)
     scene, radar = load_scene(settings.scene), load_radar(settings.radar)
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)

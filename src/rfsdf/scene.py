@@ -281,7 +281,8 @@ class Scene:
             eps = obj.material.permittivity(79e9) if obj.material.valid_ghz[0] <= 79 <= obj.material.valid_ghz[1] else None
             eps_text = "PEC" if obj.material.pec else (f"eps(79 GHz)={eps.real:.2f}{eps.imag:+.2f}j" if eps else "")
             rough = obj.roughness
-            rough_text = f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation" if rough else ""
+            rough_text = (f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation"
+                          if rough else "")
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
                          f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}")
         return "\n".join(lines)

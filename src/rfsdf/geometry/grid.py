@@ -66,8 +66,9 @@ class Grid:
 
 def trilinear(values: torch.Tensor, grid: Grid):
     """Callable p (N, 3) [m] -> (N,) for voxel-centre ``values`` of shape grid.shape, or
-    (N, C) for (C, *grid.shape), in the points' dtype: trilinear interpolation at p clamped into the box (values
-    beyond the outer voxel centres are the outer ones'). One lookup serves all C channels."""
+    (N, C) for (C, *grid.shape), in the points' dtype: trilinear interpolation at p clamped
+    into the box (values beyond the outer voxel centres are the outer ones'). One lookup
+    serves all C channels."""
     lower = torch.tensor(grid.lower_m, dtype=values.dtype, device=values.device)
     upper = torch.tensor(grid.upper_m, dtype=values.dtype, device=values.device)
     channels = values.shape[:-3]

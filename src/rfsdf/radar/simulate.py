@@ -94,10 +94,10 @@ def simulate(
 
     The surface is sampled ``lambda / samples_per_wavelength`` apart (``spacing_m``
     overrides; at most ``max_samples`` samples; rough objects need at most half their
-    correlation length, else ValueError); ``stratified`` places them one per stratum of equal
-    area (:meth:`~rfsdf.scene.Scene.sample_surface`), which cuts the quadrature's random
-    error on faces turned away from the radar (study ``roughness``). Noise is added at ``radar.snr_db`` (None:
-    noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
+    correlation length, else ValueError); ``stratified`` places them one per stratum of
+    equal area (:meth:`~rfsdf.scene.Scene.sample_surface`), which cuts the quadrature's
+    random error on faces turned away from the radar (study ``roughness``). Noise is added
+    at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
     """
