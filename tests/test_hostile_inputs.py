@@ -4,7 +4,9 @@ import copy
 import hashlib
 import json
 import os
+import re
 from importlib import resources
+from pathlib import Path
 
 import h5py
 import pytest
@@ -15,13 +17,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rfsdf.cli import main
-from rfsdf.config import read_toml
+from rfsdf.config import MAX_TOML_DEPTH, read_toml
 from rfsdf.errors import RfsdfError
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.radar import load_radar
 from rfsdf.recon import ReconConfig, load_recon_config
 from rfsdf.scene import load_scene
+from rfsdf.sweep import load_sweep
 
 
 def _snapshot(folder) -> dict:
@@ -244,3 +247,84 @@ def test_a_material_outside_the_radar_band_is_refused_before_any_work(tmp_path):
         line = _refused(args, tmp_path)
         assert "brick.toml: object 'wall': material 'brick'" in line and "range 1.0-40.0 GHz" in line, line
     assert not (tmp_path / "d").exists()
+
+
+# Batch work: every file kind through the one reader, sweeps and random datasets ----------
+_READERS = {"scene": load_scene, "radar": load_radar, "recon": load_recon_config, "sweep": load_sweep}
+
+
+@pytest.mark.parametrize("kind", sorted(_READERS))
+@pytest.mark.parametrize("depth", [MAX_TOML_DEPTH + 1, 300, 100_000])
+def test_a_toml_file_nested_too_deep_is_one_error_for_every_kind_of_file(tmp_path, kind, depth):
+    """Arrays nested past MAX_TOML_DEPTH: one line from read_toml whether tomllib parses them
+    (300 levels; later readers would recurse) or itself runs out of stack (100,000)."""
+    path = tmp_path / f"{kind}.toml"
+    path.write_text("x = " + "[" * depth + "]" * depth + "\n")
+    with pytest.raises(RfsdfError, match=re.escape(f"{path}: invalid TOML: tables and arrays nest deeper than "
+                                                   f"{MAX_TOML_DEPTH} levels")):
+        _READERS[kind](path)
+
+
+def test_a_toml_file_nested_too_deep_is_one_line_from_every_command(tmp_path):
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 20_000 + "]" * 20_000 + "\n")
+    for args in (["scene", "show", deep, "--out", tmp_path / "s.png"], ["sweep", deep, "--out", tmp_path / "o"],
+                 ["simulate", "sphere", "--radar", deep, "--out", tmp_path / "s.h5"],
+                 ["reconstruct", tmp_path / "d.h5", "--out", tmp_path / "r", "--config", deep]):
+        assert "nest deeper than" in _refused(args, tmp_path)
+
+
+def test_the_deepest_real_file_is_far_from_the_limit():
+    """The limit refuses nothing real: every preset and example is at most a few levels deep."""
+    from rfsdf.config import _nesting_depth
+
+    files = [*resources.files("rfsdf.presets.scenes").iterdir(), *resources.files("rfsdf.presets.radars").iterdir(),
+             *Path(__file__).parents[1].glob("examples/**/*.toml"), *Path(__file__).parents[1].glob("benchmarks/**/*.toml")]
+    depths = [_nesting_depth(read_toml(f)) for f in files if str(f).endswith(".toml")]
+    assert len(depths) > 10 and max(depths) <= MAX_TOML_DEPTH // 4, max(depths)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_hostile_number_in_a_sweep_file_is_one_error(tmp_path, data):
+    table = {"defaults": {"quick": True, "voxel_m": 0.015, "recon": {"train": {"steps": 6, "lr": 1e-3}}},
+             "grid": {"seed": [0, 1]}, "jobs": [{"scene": "sphere", "recon": {"init": {"threshold": 0.1}}}]}
+    path = data.draw(st.sampled_from(sorted(_numeric_leaves(table), key=str)))
+    _loads_or_refuses(load_sweep, _replaced(table, path, data.draw(HOSTILE_NUMBERS)), tmp_path)
+
+
+_DATASET_RANGES = {"--random": (1, 10**6), "--seed": (0, 2**32 - 1), "--workers": (1, 1024)}
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(sorted(_DATASET_RANGES)),
+       value=st.one_of(st.sampled_from(["nan", "inf", "-1", "0", "1e999", "abc", "", "2.5", "0x10"]),
+                       st.integers(max_value=0).map(str), st.integers(min_value=1024).map(str)))
+def test_a_bad_random_dataset_option_is_one_line_before_any_work(tmp_path, option, value):
+    low, high = _DATASET_RANGES[option]
+    if value.lstrip("-").isdigit() and low <= int(value) <= high:
+        return  # a valid value: nothing to refuse
+    args = {"--random": "2", "--seed": "0", "--workers": "1", option: value}
+    _refused(["simulate", "--out", tmp_path / "ds", *(x for kv in args.items() for x in kv)], tmp_path)
+
+
+def test_a_random_dataset_that_cannot_be_made_is_refused_before_any_scene(tmp_path):
+    line = _refused(["simulate", "--random", "2", "--radar", "no-such-radar", "--out", tmp_path / "ds"], tmp_path)
+    assert "no-such-radar: no such radar file or preset" in line
+    line = _refused(["simulate", "--random", "1000000", "--radar", "dense-77g", "--out", tmp_path / "ds"], tmp_path)
+    assert re.search(r"ds: 1,000,000 scenes of about [\d.]+ MiB each, [\d.e+]+ GiB in all, more than the", line), line
+    assert not (tmp_path / "ds").exists()
+
+
+def test_a_report_names_the_field_of_metrics_json_that_is_wrong(tmp_path):
+    (tmp_path / "demo-settings.json").write_text(json.dumps({"scene": "objects", "radar": "near-77g"}))
+    method = {"label": "x", "full": {"chamfer_l1_mm": 3.0}, "objects": {"ball": {"recall": 1.0}}}
+    methods = {name: copy.deepcopy(method) for name in ("neural", "mf_threshold", "clean_threshold", "clean_detection")}
+    methods["clean_threshold"]["full"]["chamfer_l1_mm"] = "3.1 mm"
+    (tmp_path / "metrics.json").write_text(json.dumps({"methods": methods}))
+    line = _refused(["report", tmp_path], tmp_path)
+    assert "metrics.json: methods.clean_threshold.full.chamfer_l1_mm: Input should be a valid number" in line, line
+    del methods["clean_threshold"]
+    (tmp_path / "metrics.json").write_text(json.dumps({"methods": methods}))
+    assert "metrics.json: methods: missing method(s) clean_threshold" in _refused(["report", tmp_path],
+                                                                                                tmp_path)

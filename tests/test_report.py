@@ -85,7 +85,7 @@ def test_report_refuses_bad_folders_in_one_line(tmp_path):
     (tmp_path / "metrics.json").write_text(json.dumps({"methods": {"neural": {"label": "x"}}}))
     crafted = runner.invoke(main, ["report", str(tmp_path)])
     assert crafted.exit_code == 2 and crafted.output.count("\n") == 1, crafted.output
-    assert "metrics.json: not a demo's metrics" in crafted.output
+    assert "metrics.json: methods.neural.full: Field required" in crafted.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo-settings.json", "metrics.json"]  # nothing written
     not_a_mesh = tmp_path / "x.ply"
     not_a_mesh.write_text("ply\nformat nonsense\n")

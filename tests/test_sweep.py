@@ -34,7 +34,9 @@ def _write(path, text):
 
 def test_sweep_file_expands_grid_and_listed_jobs(tmp_path):
     (tmp_path / "scenes").mkdir()
-    _write(tmp_path / "scenes" / "mine.toml", "")
+    _write(tmp_path / "scenes" / "mine.toml", 'name = "mine"\n[bounds]\nlower_m = [-0.1, -0.1, -0.1]\n'
+           'upper_m = [0.1, 0.1, 0.1]\n[[objects]]\nname = "ball"\nmaterial = "metal"\n'
+           'shape = { type = "sphere", radius_m = 0.02 }\n')
     jobs = load_sweep(_write(tmp_path / "s.toml", """
 [defaults]
 quick = true
@@ -69,17 +71,21 @@ def test_bad_sweep_files_are_one_line(tmp_path, text, message):
         load_sweep(_write(tmp_path / "bad.toml", text))
 
 
-def _metrics(rows):
-    return [{k: v for k, v in row.items() if not k.startswith("time.") and k not in ("status", "seconds_per_step")}
-            for row in rows]
+def _metrics(rows, out):
+    """The rows without their timings and status, the output folder in error lines as OUT."""
+    return [{k: v.replace(str(out), "OUT") if k == "error" else v for k, v in row.items()
+             if not k.startswith("time.") and k not in ("status", "seconds_per_step")} for row in rows]
+
+
+_DIVERGES = "[[jobs]]\nrecon = { train = { lr = 1e30, lr_end = 1e29 } }\n"  # valid settings; the fit's loss turns NaN
 
 
 def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_finished_jobs(tmp_path):
-    jobs = load_sweep(_write(tmp_path / "s.toml", _TINY + "[grid]\nseed = [0, 1]\n[[jobs]]\nradar = 'no-such-radar'\n"))
+    jobs = load_sweep(_write(tmp_path / "s.toml", _TINY + "[grid]\nseed = [0, 1]\n" + _DIVERGES))
     pool = run_sweep(jobs, tmp_path / "pool", workers=2, log=lambda _: None)
     assert [r["status"] for r in pool] == ["done", "done", "failed"]
     assert pool[0]["neural.full.chamfer_l1_mm"] != pool[1]["neural.full.chamfer_l1_mm"]  # two seeds, two fits
-    assert pool[2]["error"].startswith("RfsdfError: no-such-radar: no such radar file or preset")
+    assert pool[2]["error"].startswith("RfsdfError: step 1: loss is not finite")
     assert "\n" not in pool[2]["error"]
     csv_lines = (tmp_path / "pool" / "summary.csv").read_text().splitlines()
     assert csv_lines[0].startswith("job,scene,radar,seed") and len(csv_lines) == 4 and ",failed," in csv_lines[3]
@@ -87,7 +93,7 @@ def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_f
 
     pytest.importorskip("ray", reason="Ray is not installed (pip install 'rfsdf[cluster]')")
     on_ray = run_sweep(jobs, tmp_path / "ray", workers=2, ray_address="local", log=lambda _: None)  # 1 thread each
-    assert _metrics(on_ray) == _metrics(pool)
+    assert _metrics(on_ray, tmp_path / "ray") == _metrics(pool, tmp_path / "pool")
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
     assert summary["rows"] == json.loads(json.dumps(on_ray))
 
@@ -96,7 +102,51 @@ def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_f
     (tmp_path / "pool" / jobs[1].name / "metrics.json").unlink()
     rerun = run_sweep(jobs, tmp_path / "pool", workers=2, log=lambda _: None)
     assert [r["status"] for r in rerun] == ["reused", "done", "failed"]
-    assert _metrics(rerun) == _metrics(pool)
+    assert _metrics(rerun, tmp_path / "pool") == _metrics(pool, tmp_path / "pool")
+
+
+@pytest.mark.parametrize("job, message", [
+    ("radar = 'no-such-radar'", "job 001-sphere-no-such-radar-seed0: no-such-radar: no such radar file or preset"),
+    ("recon = { train = { steps = -5 } }", "job 001-sphere-tiny-seed0: recon: train.steps: Input should be greater than 0"),
+    ("recon = { init = { method = 'mf' } }", "job 001-sphere-tiny-seed0: recon: init: threshold \"auto\" is the CLEAN"),
+    ("scene = 'no-such-scene'", "job 001-no-such-scene-tiny-seed0: no-such-scene: no such scene file or preset"),
+])
+def test_every_jobs_settings_are_checked_before_the_first_runs(tmp_path, job, message):
+    """A bad job anywhere in the file (here the second) stops the sweep before the first job."""
+    sweep = _write(tmp_path / "s.toml", _TINY + f"[[jobs]]\n[[jobs]]\n{job}\n")
+    result = CliRunner().invoke(main, ["sweep", str(sweep), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+    assert result.output.startswith(f"error: {sweep}: {message}"), result.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_sweeps_size_is_counted_before_it_is_expanded(tmp_path):
+    """10^12 jobs are refused in a second, from the list lengths; --max-jobs moves the limit."""
+    values = lambda n: "[" + ", ".join(map(str, range(n))) + "]"  # noqa: E731
+    huge = _write(tmp_path / "huge.toml", f"[grid]\nseed = {values(10_000)}\nvoxel_m = {values(10_000)}\n"
+                                          f"quick = {['true'] * 10_000}\n".replace("'", ""))
+    with pytest.raises(RfsdfError, match=re.escape("grid: asks for 1,000,000,000,000 jobs (10000 seed x 10000 "
+                                                   "voxel_m x 10000 quick), more than the 5,000 allowed")):
+        load_sweep(huge)
+    three = _write(tmp_path / "three.toml", "[grid]\nseed = [0, 1, 2]\n[[jobs]]\n")
+    with pytest.raises(RfsdfError, match=re.escape("asks for 4 jobs (3 seed + 1 listed), more than the 3 allowed")):
+        load_sweep(three, max_jobs=3)
+    assert len(load_sweep(three, max_jobs=4)) == 4
+    result = CliRunner().invoke(main, ["sweep", str(three), "--out", str(tmp_path / "o"), "--max-jobs", "2"])
+    assert result.exit_code == 2 and "raise the limit with --max-jobs" in result.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_with_a_failed_job_exits_1(tmp_path):
+    """A failure that only shows when the job runs (here a file where its folder goes; a fit
+    that diverges is another, above) is a row of the summary and exit status 1."""
+    sweep = _write(tmp_path / "s.toml", _TINY + "[[jobs]]\n")
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "000-sphere-tiny-seed0").write_text("in the way")
+    result = CliRunner().invoke(main, ["--quiet", "sweep", str(sweep), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 1, result.output
+    assert "000-sphere-tiny-seed0: failed FileExistsError" in result.output
+    assert "(0 finished, 1 failed)" in result.output and (tmp_path / "o" / "summary.csv").is_file()
 
 
 def test_sweep_command_reports_bad_files_in_one_line(tmp_path):

@@ -155,10 +155,21 @@ def _device(name: str | None):
     return resolve_device(name)
 
 
+def _exit_on_failures(failed: int) -> None:
+    """Exit status 1 when some of a batch's jobs failed (they are rows of its summary), so
+    that `rfsdf sweep ... && next-step` and a cluster's job runner notice."""
+    if failed:
+        sys.exit(1)
+
+
+_BATCH_EXIT = ("Exit status: 0 when every job finished, 1 when some failed (each failure is a row of the summary "
+               "with its error line), 2 when the input was refused before any job ran.")
+
+
 _RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADDRESS joins a cluster."
 
 
-@main.command("simulate")
+@main.command("simulate", epilog="With --random: " + _BATCH_EXIT)
 @click.argument("scene_name", required=False)
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--out", type=click.Path(path_type=Path), required=True,
@@ -179,13 +190,16 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
     if (scene_name is None) == (random_count is None):
         raise ValueError("give a SCENE_NAME or --random N (not both)")
     if random_count is not None:
-        from .dataset import simulate_dataset
+        from .dataset import check_dataset, simulate_dataset
 
         _device(device)  # refuse a device this machine lacks before any scene is drawn
+        _refuse_overwriting_inputs(out, radar_name)
+        click.echo(check_dataset(random_count, out, radar=radar_name, base_seed=seed))
         rows = simulate_dataset(random_count, out, radar=radar_name, base_seed=seed, workers=workers,
                                 ray_address=ray_address, device=device, log=click.echo)
         failed = sum(row["status"] == "failed" for row in rows)
         click.echo(f"wrote {out / 'dataset.json'} ({len(rows) - failed} scenes, {failed} failed)")
+        _exit_on_failures(failed)
         return
     from .radar import write_measurements
 
@@ -403,25 +417,30 @@ def view_cmd(mesh_path: Path, scene_name: str | None, out: Path | None):
     click.echo(f"wrote {write_view(mesh_path, out, scene_name=scene_name)}")
 
 
-@main.command("sweep")
+@main.command("sweep", epilog=_BATCH_EXIT)
 @click.argument("sweep_file", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Folder: one run folder per job + summary.")
 @click.option("--workers", type=click.IntRange(1, 1024), default=1, show_default=True,
               help="Jobs at once in the local process pool (the cores are shared between them).")
 @click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
+@click.option("--max-jobs", type=click.IntRange(1, 10**7), default=5000, show_default=True,
+              help="Refuse a sweep file that asks for more jobs (counted before anything is expanded).")
 @_one_line_errors
-def sweep_cmd(sweep_file: Path, out: Path, workers: int, ray_address: str | None):
+def sweep_cmd(sweep_file: Path, out: Path, workers: int, ray_address: str | None, max_jobs: int):
     """Run every job of a sweep file (scene, radar, reconstruction settings, seed), each as
     `rfsdf demo` into its own folder; write summary.csv, summary.json and summary.png.
-    A rerun skips finished jobs and resumes unfinished fits."""
+    Every job's settings are checked before the first runs; a rerun skips finished jobs and
+    resumes unfinished fits."""
     from .sweep import load_sweep, run_sweep
 
-    jobs = load_sweep(sweep_file)
+    jobs = load_sweep(sweep_file, max_jobs=max_jobs)
+    _refuse_overwriting_inputs(out, sweep_file)
     where = f"Ray ({ray_address})" if ray_address else f"{workers} local worker{'s' * (workers > 1)}"
     click.echo(f"{len(jobs)} jobs on {where} -> {out}")
     rows = run_sweep(jobs, out, workers=workers, ray_address=ray_address, log=click.echo)
     failed = sum(row["status"] == "failed" for row in rows)
     click.echo(f"wrote {out / 'summary.csv'}, summary.json, summary.png ({len(rows) - failed} finished, {failed} failed)")
+    _exit_on_failures(failed)
 
 
 @main.command("study")

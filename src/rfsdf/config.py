@@ -13,7 +13,8 @@ import pydantic
 from .errors import RfsdfError
 from .limits import input_file
 
-__all__ = ["Name", "StrictModel", "read_toml", "validate", "load_model", "preset_names", "resolve_preset"]
+__all__ = ["Name", "StrictModel", "MAX_TOML_DEPTH", "read_toml", "validate", "load_model", "preset_names",
+           "resolve_preset"]
 
 Model = TypeVar("Model", bound=pydantic.BaseModel)
 
@@ -39,16 +40,42 @@ class StrictModel(pydantic.BaseModel):
     model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+MAX_TOML_DEPTH = 64
+"""Deepest nesting of tables and arrays any rfsdf file may have (a scene's CSG tree is the
+deepest real one, a few levels per operation): past it, recursive readers would overflow."""
+
+
+def _nesting_depth(value) -> int:
+    """Levels of tables and arrays in ``value`` (a scalar is 0), without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        node, depth = stack.pop()
+        children = node.values() if isinstance(node, dict) else node if isinstance(node, list) else None
+        if children is not None:
+            deepest = max(deepest, depth + 1)
+            if depth + 1 > MAX_TOML_DEPTH:
+                break
+            stack.extend((child, depth + 1) for child in children)
+    return deepest
+
+
 def read_toml(path) -> dict:
-    """Parse a TOML file; RfsdfError naming the file and line on failure."""
+    """Parse a TOML file; RfsdfError naming the file and line on failure, or when its tables
+    and arrays nest deeper than ``MAX_TOML_DEPTH`` (which no rfsdf file needs)."""
     path = input_file(path)
+    too_deep = f"{path}: invalid TOML: tables and arrays nest deeper than {MAX_TOML_DEPTH} levels"
     try:
         with path.open("rb") as fh:
-            return tomllib.load(fh)
+            table = tomllib.load(fh)
     except UnicodeDecodeError:
         raise RfsdfError(f"{path}: not a text (UTF-8) TOML file") from None
     except tomllib.TOMLDecodeError as exc:
         raise RfsdfError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise RfsdfError(too_deep) from None
+    if _nesting_depth(table) > MAX_TOML_DEPTH:
+        raise RfsdfError(too_deep)
+    return table
 
 
 def _field_path(loc: tuple) -> str:

@@ -25,7 +25,44 @@ from .jsonio import to_json
 from .parallel import error_line, map_tasks, threads_per_worker
 from .random_scenes import random_scene_spec
 
-__all__ = ["simulate_scene_file", "simulate_dataset"]
+__all__ = ["check_dataset", "simulate_scene_file", "simulate_dataset"]
+
+_SCENE_FILE_BYTES = 4096  # a random scene's TOML, rounded up [bytes]
+
+
+def check_dataset(count: int, out, *, radar: str = "near-77g", base_seed: int = 0) -> str:
+    """Refuse, before any scene is drawn, a dataset that cannot be made: a radar that does not
+    load, cannot image the random scenes' box or has a catalogue material out of band, or
+    more data than the disk under ``out`` has free. Returns the line that says how much."""
+    import shutil
+
+    import numpy as np
+
+    from .errors import RfsdfError
+    from .materials import get_material
+    from .radar import check_radar_for_scene, load_radar
+    from .random_scenes import MATERIALS
+
+    system = load_radar(radar)
+    bounds = random_scene_spec(base_seed)["bounds"]  # every random scene has the same box
+    check_radar_for_scene(system, bounds["lower_m"], bounds["upper_m"], source=radar)
+    for name in MATERIALS:  # any random scene may use any of them
+        for frequency_hz in (float(np.min(system.frequencies_hz)), float(np.max(system.frequencies_hz))):
+            try:
+                get_material(name).permittivity(frequency_hz)
+            except ValueError as exc:
+                raise RfsdfError(f"{radar}: {exc} (random scenes use {', '.join(MATERIALS)})") from None
+    views, txs, rxs = len(system.rotations), len(system.tx_m), len(system.rx_m)
+    # complex64 samples (gzip cannot shrink noise) and float64 element positions per view
+    per_scene = 8 * views * txs * rxs * len(system.frequencies_hz) + 24 * views * (txs + rxs + 1) + _SCENE_FILE_BYTES
+    total = per_scene * count
+    folder = next(p for p in (Path(out).resolve(), *Path(out).resolve().parents) if p.exists())
+    free = shutil.disk_usage(folder).free
+    amount = f"{count:,} scenes of about {per_scene / 2**20:.3g} MiB each, {total / 2**30:.3g} GiB in all"
+    if total > free:
+        raise RfsdfError(f"{out}: {amount}, more than the {free / 2**30:.3g} GiB free on its disk; "
+                         "ask for fewer scenes or write elsewhere")
+    return f"{amount} ({free / 2**30:.3g} GiB free)"
 
 
 def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, threads: int,

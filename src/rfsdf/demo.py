@@ -35,6 +35,7 @@ import numpy as np
 import torch
 
 from .atomic import atomic_path
+from .config import validate
 from .baseline import best_threshold_mesh, detection_mesh
 from .device import resolve_device
 from .errors import RfsdfError
@@ -43,7 +44,7 @@ from .jsonio import to_json
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
-    check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
+    Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
     write_image, write_measurements,
 )
 from .radar.clean import clean_image
@@ -51,11 +52,11 @@ from .radar.coverage import observed_mask
 from .radar.simulate import SAMPLES_PER_WAVELENGTH
 from .recon import Problem, ReconConfig, Trainer
 from .recon.warm_start import detection_threshold, excluded_voxels
-from .scene import load_scene
+from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows",
-           "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "MethodResult", "DemoResult", "SETTINGS_NAME",
+           "run_demo", "metrics_rows", "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -139,6 +140,24 @@ def _claim(out: Path, settings: DemoSettings) -> None:
         tmp.write_text(to_json(wanted))
 
 
+@dataclass(frozen=True)
+class SceneAndRadar:
+    """A scene and the radar that images it, loaded and checked against each other."""
+
+    scene: Scene
+    radar: Radar
+
+
+def load_scene_and_radar(scene_name: str, radar_name: str) -> SceneAndRadar:
+    """The scene and the radar that settings name (presets or files), refused in one line
+    before any work when the radar cannot image the scene's box or a material has no model
+    in its band."""
+    scene, radar = load_scene(scene_name), load_radar(radar_name)
+    check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=radar_name)
+    check_materials_in_band(scene, radar, source=scene_name)
+    return SceneAndRadar(scene, radar)
+
+
 def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
              log: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
     """Run the pipeline into folder ``out`` with ``settings`` (None: the demo's defaults);
@@ -150,11 +169,9 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     out = Path(out)
     settings = settings or DemoSettings()
     device = resolve_device(device)
-    scene, radar = load_scene(settings.scene), load_radar(settings.radar)
-    check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=settings.radar)
-    check_materials_in_band(scene, radar, source=settings.scene)
-    config = ReconConfig.model_validate(settings.recon)
-    config = config.on_device(device)
+    inputs = load_scene_and_radar(settings.scene, settings.radar)
+    scene, radar = inputs.scene, inputs.radar
+    config = validate(ReconConfig, settings.recon, "recon").on_device(device)
     _claim(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()

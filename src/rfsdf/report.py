@@ -27,9 +27,11 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+import pydantic
 import trimesh
 
 from .atomic import atomic_path
+from .config import validate
 from .demo import SETTINGS_NAME, metrics_rows
 from .errors import RfsdfError
 from .limits import input_file
@@ -49,6 +51,40 @@ __all__ = ["REPORT_NAME", "Section", "write_report", "write_view"]
 REPORT_NAME = "report.html"
 _RUN_MESH_RESOLUTION = 96  # marching cubes of a run folder's field when it has no mesh.ply
 _BASELINES = ("mf_threshold", "clean_threshold", "clean_detection")
+
+
+class _Scored(pydantic.BaseModel):
+    """What the report reads of one method's entry in metrics.json (other keys pass)."""
+
+    model_config = pydantic.ConfigDict(extra="allow", allow_inf_nan=False)
+
+    label: str
+    full: dict[str, float | None]
+    observed: dict[str, float | None] | None = None
+    observed_fraction: float | None = None
+    accuracy_near_observed_mm: float | None = None
+    accuracy_near_unobserved_mm: float | None = None
+    completeness_observed_mm: float | None = None
+    completeness_unobserved_mm: float | None = None
+    objects: dict[str, dict[str, float | None]]
+
+
+class _DemoMetrics(pydantic.BaseModel):
+    """What the report reads of a demo's metrics.json: every method's scores, stage times."""
+
+    model_config = pydantic.ConfigDict(extra="allow")
+
+    methods: dict[str, _Scored]
+    timings_s: dict[str, float] = {}
+
+    @pydantic.field_validator("methods")
+    @classmethod
+    def _has_every_method(cls, methods: dict[str, _Scored]) -> dict[str, _Scored]:
+        missing = [name for name in ("neural", *_BASELINES) if name not in methods]
+        if missing:
+            raise ValueError(f"missing method(s) {', '.join(missing)}")
+        return methods
+
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; padding: 0 1em; color: #222; }
@@ -142,17 +178,15 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     result = _read_json(folder / "metrics.json", "a demo's metrics")
     if not all(isinstance(settings.get(key), str) for key in ("scene", "radar")):
         raise RfsdfError(f"{folder / SETTINGS_NAME}: scene, radar: missing or not names")
-    try:
-        labels, rows = metrics_rows(result)
-        fraction = next(iter(result["methods"].values()))["observed_fraction"]
-        neural, baselines = result["methods"]["neural"], {name: result["methods"][name] for name in _BASELINES}
-        best = min(baselines, key=lambda name: baselines[name]["full"]["chamfer_l1_mm"])
-        times = ", ".join(f"{k.removesuffix('_s')} {v:.0f}" for k, v in result.get("timings_s", {}).items())
-        observed_text = "" if fraction is None else (
-            f"<p>Observed surface: {fraction:.0%} of the true surface is seen near specular by some view; the "
-            "observed columns measure completeness over that part only.</p>")
-    except (KeyError, TypeError, ValueError, AttributeError, StopIteration) as exc:
-        raise RfsdfError(f"{folder / 'metrics.json'}: not a demo's metrics (missing or malformed {exc})") from None
+    validate(_DemoMetrics, result, f"{folder / 'metrics.json'}")
+    labels, rows = metrics_rows(result)
+    fraction = next(iter(result["methods"].values()))["observed_fraction"]
+    neural, baselines = result["methods"]["neural"], {name: result["methods"][name] for name in _BASELINES}
+    best = min(baselines, key=lambda name: baselines[name]["full"]["chamfer_l1_mm"] or np.inf)
+    times = ", ".join(f"{k.removesuffix('_s')} {v:.0f}" for k, v in result.get("timings_s", {}).items())
+    observed_text = "" if fraction is None else (
+        f"<p>Observed surface: {fraction:.0%} of the true surface is seen near specular by some view; the "
+        "observed columns measure completeness over that part only.</p>")
     scene, radar = load_scene(settings["scene"]), load_radar(settings["radar"])
     acquisition = read_measurements(folder / "measurements.h5").acquisition
     field = load_field(folder / "run")

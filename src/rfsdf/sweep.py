@@ -33,9 +33,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import io
 import itertools
 import json
+import math
 from pathlib import Path
 from typing import Any, Callable
 
@@ -43,12 +45,13 @@ import pydantic
 
 from .atomic import atomic_path
 from .config import StrictModel, read_toml, validate
-from .demo import QUICK, SETTINGS_NAME, DemoSettings, run_demo
+from .demo import QUICK, SETTINGS_NAME, DemoSettings, load_scene_and_radar, run_demo
 from .errors import RfsdfError
 from .jsonio import to_json
 from .parallel import error_line, map_tasks, threads_per_worker
+from .recon import ReconConfig
 
-__all__ = ["JobSpec", "SweepSpec", "Job", "load_sweep", "run_job", "run_sweep", "summary_row"]
+__all__ = ["JobSpec", "SweepSpec", "Job", "MAX_JOBS", "count_jobs", "load_sweep", "run_job", "run_sweep", "summary_row"]
 
 
 class JobSpec(StrictModel):
@@ -116,16 +119,49 @@ def _merge(base: dict, overrides: dict) -> dict:
     return merged
 
 
-def load_sweep(path) -> list[Job]:
-    """The jobs of a sweep file, in order (grid first, then the listed jobs); one-line errors."""
+MAX_JOBS = 5000
+"""Most jobs one sweep may ask for unless told (``rfsdf sweep --max-jobs``)."""
+
+
+def count_jobs(spec: SweepSpec) -> int:
+    """Jobs a sweep file asks for, from its list lengths alone (nothing is expanded)."""
+    return (math.prod(len(values) for values in spec.grid.values()) if spec.grid else 0) + len(spec.jobs)
+
+
+def load_sweep(path, *, max_jobs: int = MAX_JOBS) -> list[Job]:
+    """The jobs of a sweep file, in order (grid first, then the listed jobs), each checked as
+    ``rfsdf demo`` would check it (scene, radar, reconstruction settings) before any runs;
+    one-line errors. A file asking for more than ``max_jobs`` is refused before its grid is
+    expanded."""
     path = Path(path)
     spec = validate(SweepSpec, read_toml(path), str(path))
-    combos = [dict(zip(spec.grid, values)) for values in itertools.product(*spec.grid.values())] if spec.grid else []
-    fields = [_merge(spec.defaults, combo) for combo in combos] + [_merge(spec.defaults, job) for job in spec.jobs]
-    if not fields:
+    count = count_jobs(spec)
+    if count == 0:
         raise RfsdfError(f"{path}: (top level): no jobs (give a [grid] table or [[jobs]] entries)")
+    if count > max_jobs:
+        sizes = " x ".join(f"{len(values)} {key}" for key, values in spec.grid.items())
+        listed = f" + {len(spec.jobs)} listed" if spec.jobs else ""
+        raise RfsdfError(f"{path}: grid: asks for {count:,} jobs ({sizes or 'no grid'}{listed}), more than the "
+                         f"{max_jobs:,} allowed; split the sweep or raise the limit with --max-jobs")
+    combos = (dict(zip(spec.grid, values)) for values in itertools.product(*spec.grid.values())) if spec.grid else ()
+    fields = itertools.chain((_merge(spec.defaults, combo) for combo in combos),
+                             (_merge(spec.defaults, job) for job in spec.jobs))
     jobs = [_job(i, f, str(path), path.parent) for i, f in enumerate(fields)]
+    _check_jobs(jobs, str(path))
     return jobs
+
+
+def _check_jobs(jobs: list[Job], source: str) -> None:
+    """Every job's scene, radar and reconstruction settings, checked before the first runs
+    (each scene and radar pair loaded once); RfsdfError naming the first bad job and field."""
+    scene_and_radar = functools.cache(load_scene_and_radar)
+    for job in jobs:
+        where = f"{source}: job {job.name}"
+        try:
+            scene_and_radar(job.settings.scene, job.settings.radar)
+        except RfsdfError as exc:
+            raise RfsdfError(f"{where}: {exc}") from None
+        validate(ReconConfig, job.settings.recon, f"{where}: recon")
 
 
 def run_job(job: Job, folder: str, threads: int) -> dict:
