@@ -1,3 +1,4 @@
+import os
 import shutil
 from pathlib import Path
 
@@ -11,6 +12,19 @@ from rfsdf.radar import (
 from rfsdf.studies.ball_fit import small_radar
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def pytest_configure(config):
+    """RFSDF_TEST_THREADS=N runs the suite with N torch threads (torch clamps OMP_NUM_THREADS
+    to the core count, so 4 threads on a 2-core machine need this): a verdict must not depend
+    on it (README, "Reproducibility")."""
+    threads = os.environ.get("RFSDF_TEST_THREADS")
+    if threads:
+        torch.set_num_threads(int(threads))
+
+
+def pytest_report_header(config):
+    return f"torch threads: {torch.get_num_threads()}"
 
 
 @pytest.fixture
