@@ -328,3 +328,19 @@ def test_a_report_names_the_field_of_metrics_json_that_is_wrong(tmp_path):
     (tmp_path / "metrics.json").write_text(json.dumps({"methods": methods}))
     assert "metrics.json: methods: missing method(s) clean_threshold" in _refused(["report", tmp_path],
                                                                                                 tmp_path)
+
+
+def test_material_inputs_are_one_line(tmp_path, tiny_files):
+    """An unknown class, a class twice, `materials` on a folder that is no run or whose fit had
+    no head: one error line naming the file and field, nothing written."""
+    for classes, reason in ((['"metal"', '"unobtainium"'], "unknown material 'unobtainium'"),
+                            (['"metal"', '"pec"'], "each material class once")):
+        config = tmp_path / "materials.toml"
+        config.write_text(f"[field]\nmaterials = [{', '.join(classes)}]\n")
+        line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--config", config], tmp_path)
+        assert f"{config}: field.materials: " in line and reason in line, line
+    assert "no checkpoint.pt" in _refused(["materials", tmp_path], tmp_path)
+    demo = tmp_path / "demo"
+    demo.mkdir()
+    (demo / "metrics.json").write_text(json.dumps({"methods": {}, "materials": None}))
+    assert "metrics.json: materials: the fit had no material head" in _refused(["materials", demo], tmp_path)

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from rfsdf.materials import (
-    Material, brewster_angle, estimate_permittivity, fresnel, get_material, reflectance,
+    Material, brewster_angle, estimate_permittivity, fresnel, fresnel_of_cosine, get_material, mixture_fresnel,
+    reflectance,
 )
 
 
@@ -89,3 +90,32 @@ def test_permittivity_with_an_unknown_gain_comes_from_the_shape_across_angles(po
     # With the gain assumed known, the same data fit nothing (or something else).
     with pytest.raises(ValueError, match="no permittivity|must be finite and in"):
         estimate_permittivity(thetas, measured, pol)
+
+
+@pytest.mark.parametrize("polarization", ["TE", "TM", "mean"])
+def test_fresnel_of_the_cosine_is_fresnel_and_differentiable_at_normal_incidence(polarization):
+    """The renderer takes gradients through the incidence geometry; through arccos they are
+    infinite at normal incidence (0 x inf = NaN), through the cosine they are finite and
+    match finite differences, and d|Gamma|/dcos = 0 there (|Gamma| is even in theta)."""
+    thetas = torch.linspace(0, 1.5, 31, dtype=torch.float64)
+    eps = 6.31 - 0.29j
+    torch.testing.assert_close(fresnel_of_cosine(torch.cos(thetas), eps, polarization), fresnel(thetas, eps, polarization))
+    cos = torch.tensor([1.0, 0.9, 0.5], dtype=torch.float64, requires_grad=True)
+    fresnel_of_cosine(cos, eps, polarization).abs().sum().backward()
+    assert torch.isfinite(cos.grad).all()
+    assert torch.autograd.gradcheck(lambda c: fresnel_of_cosine(c, eps, polarization).abs(), (cos[1:].detach().requires_grad_(),))
+
+
+def test_a_mixture_of_classes_reflects_the_expected_coefficient():
+    """sum_k p_k Gamma_k: a certain class gives its own coefficient, an even mixture the mean,
+    and the gradient in p_k is Gamma_k."""
+    cos = torch.tensor([1.0, 0.7], dtype=torch.float64)
+    eps = torch.tensor([complex(math.inf, 0), 5.24 - 0.1j], dtype=torch.complex128)
+    certain = torch.tensor([[1.0, 0.0], [0.0, 1.0]], dtype=torch.float64)
+    torch.testing.assert_close(mixture_fresnel(cos, certain, eps),
+                               torch.stack([fresnel_of_cosine(cos[0], eps[0], "mean"), fresnel_of_cosine(cos[1], eps[1], "mean")]))
+    even = torch.full((2, 2), 0.5, dtype=torch.float64, requires_grad=True)
+    mixed = mixture_fresnel(cos, even, eps)
+    torch.testing.assert_close(mixed, 0.5 * (fresnel_of_cosine(cos, eps[0], "mean") + fresnel_of_cosine(cos, eps[1], "mean")))
+    mixed.real.sum().backward()
+    torch.testing.assert_close(even.grad[:, 1], fresnel_of_cosine(cos, eps[1], "mean").real)

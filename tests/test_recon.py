@@ -11,7 +11,7 @@ import torch
 from rfsdf.errors import RfsdfError
 from rfsdf.field import RadarField
 from rfsdf.geometry import Grid, gradient
-from rfsdf.materials import fresnel
+from rfsdf.materials import mixture_fresnel
 from rfsdf.radar import simulate
 from rfsdf.radar.scattering import lit_mask
 from rfsdf.radar.simulate import SAMPLES_PER_WAVELENGTH
@@ -21,7 +21,8 @@ from rfsdf.recon import (
 )
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
 from rfsdf.recon.warm_start import detection_target, fit_to_image
-from rfsdf.scene import load_scene
+from rfsdf.scene import Scene, load_scene
+from rfsdf.scene_spec import SceneSpec
 from rfsdf.studies.ball_fit import ball_data
 
 RADIUS = 0.02  # the `sphere` preset: a 2 cm metal ball at the origin
@@ -124,22 +125,49 @@ def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_d
     assert 80 < finite < 150 and analytic == pytest.approx(finite, rel=0.15)
 
 
-def test_renderer_on_the_true_samples_reproduces_the_simulator(sphere_data, tiny_radar):
-    scene, _ = sphere_data
+def _two_balls(wood: str = "wood") -> Scene:
+    """A 3 cm metal ball and a 3 cm ball of ``wood`` (or another catalogue material), 5 cm apart."""
+    ball = lambda name, material, x: {"name": name, "material": material, "shape": {  # noqa: E731
+        "type": "sphere", "radius_m": 0.015, "transform": {"translate_m": [x, 0.0, 0.0]}}}
+    return Scene(SceneSpec.model_validate({"name": "two-balls", "bounds": {"lower_m": [-0.06] * 3, "upper_m": [0.06] * 3},
+                                           "objects": [ball("metal_ball", "metal", -0.025), ball("wood_ball", wood, 0.025)]}))
+
+
+def test_renderer_on_the_true_samples_reproduces_the_simulator(tiny_radar):
+    """The simulator's own samples (stratified, its default) through the renderer's material
+    path, each sample certain of its object's material: the simulator's data to round-off."""
+    scene = _two_balls()
     radar = dataclasses.replace(tiny_radar, snr_db=None)
     clean = simulate(scene, radar, seed=3)
     renderer = CoherentRenderer(clean, _grid(8))
     acq = clean.acquisition
-    samples = scene.sample_surface(acq.wavelength_m / SAMPLES_PER_WAVELENGTH, seed=3, max_samples=150_000)  # simulate's
-    eps = torch.tensor([complex(o.material.permittivity(acq.center_frequency_hz)) for o in scene.objects])
+    samples = scene.sample_surface(acq.wavelength_m / SAMPLES_PER_WAVELENGTH, seed=3, max_samples=150_000,
+                                   stratified=True)  # simulate's
+    classes = renderer.class_permittivities(("metal", "wood"))
+    certain = torch.nn.functional.one_hot(samples.object_index, 2).double()  # object i is class i
     for view in range(acq.shape[0]):
         lit = lit_mask(samples.points, samples.normals, renderer.tx_centres[view], renderer.rx_centres[view],
                        occluder=scene.sdf)
         p, n, a = samples.points[lit], samples.normals[lit], samples.area_m2[lit]
-        fresnel_of = lambda cos: fresnel(torch.arccos(cos), eps[samples.object_index[lit]], "mean")  # noqa: E731
-        y = renderer.predict_data(view, p.double(), n.double(), a.double(), fresnel_of)
+        y = renderer.predict_data(view, p.double(), n.double(), a.double(),
+                                  lambda cos, lit=lit: mixture_fresnel(cos, certain[lit], classes))
         reference = clean.data[view]
         assert float((y[0] - reference).norm() / reference.norm()) < 1e-5
+
+
+def test_the_material_path_of_a_metal_surface_is_the_free_path_at_reflectivity_one(sphere_data):
+    """A field certain that its surface is metal (Gamma = -1 at every angle) renders the images
+    of a free reflectivity of 1 with the sign flipped: the two paths share everything else."""
+    _, data = sphere_data
+    renderer = CoherentRenderer(data, _grid(10))
+    ball = _Ball(RADIUS + 0.001)
+    with torch.no_grad():
+        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
+    free = renderer(ball, views, voxels)
+    ball.materials, ball.material_head = ("metal", "glass"), True
+    metal = torch.tensor([[1.0, 0.0]]).expand(len(renderer.candidates), 2)
+    torch.testing.assert_close(renderer(ball, views, voxels, probabilities=metal), -free)
 
 
 def test_renderer_and_loss_pass_gradcheck_in_float64(sphere_data):
@@ -187,7 +215,7 @@ def test_gradient_in_the_radius_matches_finite_differences(sphere_data):
 
 def _config(**train) -> ReconConfig:
     return ReconConfig.model_validate({
-        "field": {"width": 32, "depth": 4, "levels": 2, "init_radius_m": RADIUS + 0.003},
+        "field": {"width": 32, "depth": 4, "levels": 2, "init_radius_m": RADIUS + 0.003, "materials": []},
         "init": {"method": "sphere"},
         "render": {"element_step": 1, "refresh_every": 4},
         "sampling": {"views_per_step": 6, "data_batch": 1024, "eikonal_batch": 512},
@@ -202,27 +230,44 @@ def _mean_radius(field, renderer) -> float:
         return float(project_to_surface(field.sdf, renderer.candidates)[0].norm(dim=1).mean())
 
 
-def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path):
-    """From a 3 mm dilation into the basin of the truth: within lambda/2. Not closer: with 6
-    views of a 4 cm array, the amplitude loss of the ball's radius ripples with period about
-    a millimetre (the glint and the limb interfere; measured: local minima near 20, 21 and 22
-    mm of about the same depth), and the fit stops in the nearest (21.3 mm here). It used to
-    reach lambda/4 helped by a bias: with frozen sample areas the gradient said a sphere
-    brightens as it shrinks, and pulled every convex surface inward (docs/quality-history.md,
-    "The area term"). f moves from the first step (one uniform ball: Gamma has no brightness to
-    explain first)."""
+@pytest.mark.parametrize("threads", [1, 4])
+def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path, threads):
+    """From a 3 mm dilation into the basin of the truth: within lambda/2, at 1 and 4 torch
+    threads (the sums' last bits, and with them the fit's path, follow the thread count and
+    the CPU). Not closer: with 6 views of a 4 cm array, the amplitude loss of the ball's
+    radius ripples with period about a millimetre (the glint and the limb interfere;
+    measured: local minima near 20, 21 and 22 mm of about the same depth), and the fit stops
+    in one of them. It used to reach lambda/4 helped by a bias: with frozen sample areas the
+    gradient said a sphere brightens as it shrinks, and pulled every convex surface inward
+    (docs/quality-history.md, "The area term"). f moves from the first step (one uniform
+    ball: Gamma has no brightness to explain first).
+
+    Margins, measured over seeds 0-11 at 1 thread and 0-5 at 2 and 4 threads (24 fits, 22.8-
+    23.3 mm at the start): the fitted radius lies 18.80-21.63 mm, at most 1.63 mm from the
+    truth (lambda/2 = 1.90 mm), and every fit moved at least 1.45 mm inward; seed 0 (this
+    test) ends at 20.28 mm with both thread counts. The data loss is not asserted: each step
+    scores a fresh random batch of voxels against a fresh random surface sampling, and two
+    samplings of one fitted field score 0.07 and 0.14, more than the fit's progress; the mean
+    of the last five steps was above that of the first five in 4 of the 24 fits."""
     _, data = sphere_data
-    trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),
-                      tmp_path / "run")
-    dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
-    fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
-                 eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
-    assert _mean_radius(trainer.field, trainer.renderer) == pytest.approx(RADIUS + 0.003, abs=3e-4)
-    fit = trainer.fit()
+    default = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),
+                          tmp_path / "run")
+        dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
+        fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
+                     eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
+        start = _mean_radius(trainer.field, trainer.renderer)
+        assert start == pytest.approx(RADIUS + 0.003, abs=3e-4)
+        fit = trainer.fit()
+        end = _mean_radius(fit.field, trainer.renderer)
+    finally:
+        torch.set_num_threads(default)
     wavelength = data.acquisition.wavelength_m
-    assert _mean_radius(fit.field, trainer.renderer) == pytest.approx(RADIUS, abs=wavelength / 2)
-    first, last = (sum(r.data for r in rows) / 5 for rows in (fit.log[:5], fit.log[-5:]))
-    assert len(fit.log) == 40 and last < first
+    assert len(fit.log) == 40 and all(math.isfinite(r.data) for r in fit.log)
+    assert end == pytest.approx(RADIUS, abs=wavelength / 2)
+    assert start - end > wavelength / 4  # towards the truth, not merely inside a wide tolerance
 
 
 def test_warm_start_points_near_the_surface_fit_a_small_object():

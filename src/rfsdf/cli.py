@@ -371,25 +371,48 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
 @click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
 @click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
+@click.option("--no-materials", is_flag=True,
+              help="Fit a free reflectivity instead of the material head (no material estimates).")
 @_device_option()
 @_one_line_errors
-def demo(out: Path, scene_name: str, radar_name: str, quick: bool, device: str):
+def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, device: str):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
-    Ends with a table of metrics for the GeRaF reconstruction and the baselines.
-    A second run with the same --out continues (or reuses) the fit.
+    Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
+    the material head says each object is made of. A second run with the same --out
+    continues (or reuses) the fit.
     """
     import dataclasses
 
     from .demo import QUICK, DemoSettings, metrics_table, run_demo
+    from .config import merge_tables
 
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
+    if no_materials:
+        settings = dataclasses.replace(settings, recon=merge_tables(settings.recon, {"field": {"materials": []}}))
     from .report import write_report
 
     result = run_demo(out, settings, device=device, log=click.echo)
     click.echo(metrics_table(result))
     click.echo(f"total {result.timings_s['total_s']:.0f} s; every artefact and metrics.json are in {out}")
     click.echo(f"report (open in a browser): {write_report(out)}")
+
+
+@main.command("materials")
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--data", "data_path", type=click.Path(path_type=Path), default=None,
+              help="For a run folder: the measurements it was fitted on (default: the file the checkpoint names).")
+@click.option("--scene", "scene_name", default=None, help="For a run folder: the true scene, for a row per object.")
+@_one_line_errors
+def materials_cmd(folder: Path, data_path: Path | None, scene_name: str | None):
+    """Print what each surface of a finished run is made of: per object (with the truth) and
+    per connected component, class probabilities, eps' with its interval, observed share.
+
+    FOLDER is a demo folder (read from its metrics.json) or a `reconstruct` run folder (its
+    field's material head on its mesh.ply, observed by the views of --data)."""
+    from .material_estimates import run_materials
+
+    click.echo(run_materials(folder, data_path=data_path, scene_name=scene_name))
 
 
 @main.command("report")

@@ -13,8 +13,8 @@ import pydantic
 from .errors import RfsdfError
 from .limits import input_file
 
-__all__ = ["Name", "StrictModel", "MAX_TOML_DEPTH", "read_toml", "validate", "load_model", "preset_names",
-           "resolve_preset"]
+__all__ = ["Name", "StrictModel", "MAX_TOML_DEPTH", "read_toml", "merge_tables", "validate", "load_model",
+           "preset_names", "resolve_preset"]
 
 Model = TypeVar("Model", bound=pydantic.BaseModel)
 
@@ -76,6 +76,15 @@ def read_toml(path) -> dict:
     if _nesting_depth(table) > MAX_TOML_DEPTH:
         raise RfsdfError(too_deep)
     return table
+
+
+def merge_tables(base: dict, overrides: dict) -> dict:
+    """Nested dict update (TOML tables): tables merge key by key, other values replace."""
+    merged = dict(base)
+    for key, value in overrides.items():
+        nested = isinstance(value, dict) and isinstance(merged.get(key), dict)
+        merged[key] = merge_tables(merged[key], value) if nested else value
+    return merged
 
 
 def _field_path(loc: tuple) -> str:

@@ -41,6 +41,7 @@ from .device import resolve_device
 from .errors import RfsdfError
 from .geometry import Grid
 from .jsonio import to_json
+from .material_estimates import MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
@@ -49,7 +50,7 @@ from .radar import (
 )
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
-from .radar.simulate import SAMPLES_PER_WAVELENGTH
+from .radar.simulate import SAMPLES_PER_WAVELENGTH, SIMULATED_GAIN
 from .recon import Problem, ReconConfig, Trainer
 from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
@@ -69,8 +70,12 @@ class DemoSettings:
     seed: int = 0
     max_surface_samples: int = 150_000  # of the simulator
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH  # of the simulator's surface
-    stratified_samples: bool = False  # the simulator's samples one per stratum of equal area
+    stratified_samples: bool = True  # the simulator's samples one per stratum of equal area
     recon: dict = field(default_factory=dict)  # ReconConfig overrides (nested tables)
+    # give the fit the simulator's radar gain (absolute |Gamma|); off, one gain is fitted at
+    # each step and materials are relative: with the gain known, the neural surface's dimmer
+    # glints made the head pick brighter classes (tests/test_material_fit.py)
+    known_gain: bool = False
     mesh_resolution: int = 128
     metric_samples: int = 50_000
 
@@ -111,11 +116,13 @@ class DemoResult:
     seconds_per_step: float
     methods: dict[str, MethodResult]
     timings_s: dict[str, float]
+    materials: MaterialReport | None = None  # the GeRaF fit's, when it has a material head
 
     def as_dict(self) -> dict:
         return {"scene": self.scene, "radar": self.radar, "grid": list(self.grid), "voxel_mm": self.voxel_mm,
                 "threads": self.threads, "fit_steps": self.fit_steps, "seconds_per_step": self.seconds_per_step,
-                "methods": {name: m.as_dict() for name, m in self.methods.items()}, "timings_s": self.timings_s}
+                "methods": {name: m.as_dict() for name, m in self.methods.items()}, "timings_s": self.timings_s,
+                "materials": None if self.materials is None else self.materials.as_dict()}
 
 
 SETTINGS_NAME = "demo-settings.json"
@@ -216,7 +223,8 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
         f"({config.init.steps} steps) + {config.train.steps} steps")
     problem = Problem(measurements, grid, str(out / "measurements.h5"),
-                      clean=clean if config.init.method == "clean" else None)
+                      clean=clean if config.init.method == "clean" else None,
+                      gain=SIMULATED_GAIN if settings.known_gain else None)
     fit = Trainer(problem, config, out / "run", progress=progress).fit(resume=True)
     lap("fit_s")
 
@@ -229,6 +237,12 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     methods = {"neural": MethodResult("GeRaF (neural)", score(neural)),
                "neural_warm_start": MethodResult("its warm start", score(warm))}
     lap("mesh_and_evaluate_s")
+    materials = None
+    if fit.field.material_head is not None:
+        materials = estimate_materials(fit.field, neural, measurements.acquisition, scene=scene, seed=settings.seed,
+                                       calibration=calibration_text(problem.gain))
+        export_mesh(paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz), out / "neural.ply")
+        lap("materials_s")
 
     reference = scene.ground_truth_mesh()
     for name, power, label in (("mf_threshold", mf_power, "MF threshold"),
@@ -258,7 +272,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
 
     result = DemoResult(scene.name, radar.name, grid.shape, settings.voxel_m * 1e3, torch.get_num_threads(),
                         len(fit.log), round(fit.seconds_per_step, 3), methods,
-                        {**timings, "total_s": round(sum(timings.values()), 2)})
+                        {**timings, "total_s": round(sum(timings.values()), 2)}, materials)
     with atomic_path(out / "metrics.json") as tmp:
         tmp.write_text(to_json(result.as_dict()))
     return result
@@ -292,7 +306,8 @@ def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
 
 
 def metrics_table(result: DemoResult) -> str:
-    """Every method's metrics side by side (full surface, observed surface, per-object recall)."""
+    """Every method's metrics side by side (full surface, observed surface, per-object recall),
+    then the materials when the fit has a head."""
     labels, rows = metrics_rows(result.as_dict())
     width = max(18, *(len(label) + 2 for label in labels))
     lines = [f"{'':<24}" + "".join(f"{label:>{width}}" for label in labels)]
@@ -302,4 +317,6 @@ def metrics_table(result: DemoResult) -> str:
         lines.append(f"(observed surface: {metrics.observed_fraction:.0%} of the true surface is seen near specular "
                      "by some view; by object: " + ", ".join(f"{name} {m.observed_fraction:.0%}"
                                                              for name, m in metrics.objects.items()) + ")")
+    if result.materials is not None:
+        lines.append(materials_table(result.materials.as_dict()))
     return "\n".join(lines)

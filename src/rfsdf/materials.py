@@ -15,7 +15,7 @@ import torch
 from scipy import optimize
 
 __all__ = [
-    "Material", "MATERIALS", "get_material", "fresnel", "reflectance", "brewster_angle",
+    "Material", "MATERIALS", "get_material", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
     "PermittivityEstimate", "estimate_permittivity", "EPS0",
 ]
 
@@ -104,25 +104,43 @@ def fresnel(theta_rad, eps, polarization: str = "TE") -> torch.Tensor:
     at normal incidence; "mean" is the unpolarised amplitude sqrt((|TE|^2 + |TM|^2) / 2)
     with the TE phase. A PEC gives TE = -1, TM = +1.
     """
+    return fresnel_of_cosine(torch.cos(torch.as_tensor(theta_rad, dtype=torch.float64)), eps, polarization)
+
+
+def fresnel_of_cosine(cos_inc, eps, polarization: str = "TE") -> torch.Tensor:
+    """:func:`fresnel` of cos(theta_inc) (float or tensor in [0, 1]) instead of the angle:
+    differentiable in the cosine everywhere, normal incidence included (where arccos is not),
+    so a renderer can take gradients through the incidence geometry. complex128."""
     if polarization not in POLARIZATIONS:
         raise ValueError(f"polarization must be one of {POLARIZATIONS}, got {polarization!r}")
-    theta = torch.as_tensor(theta_rad, dtype=torch.float64)
-    eps = _as_eps(eps)
+    cos_t = torch.as_tensor(cos_inc).to(torch.float64)
+    eps = _as_eps(eps).to(cos_t.device)
     if polarization == "mean":
-        te, tm = fresnel(theta, eps, "TE"), fresnel(theta, eps, "TM")
+        te, tm = fresnel_of_cosine(cos_t, eps, "TE"), fresnel_of_cosine(cos_t, eps, "TM")
         amplitude = torch.sqrt((te.abs() ** 2 + tm.abs() ** 2) / 2)
         return amplitude * torch.sgn(te)
-    cos_t, sin_t = torch.cos(theta).to(torch.complex128), torch.sin(theta).to(torch.complex128)
+    cos_c = cos_t.to(torch.complex128)
     pec = torch.isinf(eps.real)
     eps_safe = torch.where(pec, torch.ones_like(eps), eps)
-    root = torch.sqrt(eps_safe - sin_t**2)  # principal branch: Im <= 0, decaying for exp(+j w t)
+    root = torch.sqrt(eps_safe - 1 + cos_c**2)  # sqrt(eps - sin^2 t), principal branch: Im <= 0, decaying
     if polarization == "TE":
-        gamma = (cos_t - root) / (cos_t + root)
+        gamma = (cos_c - root) / (cos_c + root)
         pec_value = -1.0
     else:
-        gamma = (eps_safe * cos_t - root) / (eps_safe * cos_t + root)
+        gamma = (eps_safe * cos_c - root) / (eps_safe * cos_c + root)
         pec_value = 1.0
     return torch.where(pec, torch.full_like(gamma, pec_value), gamma)
+
+
+def mixture_fresnel(cos_inc: torch.Tensor, probabilities: torch.Tensor, eps: torch.Tensor,
+                    polarization: str = "mean") -> torch.Tensor:
+    """The expected Fresnel coefficient of points whose material is class k with probability
+    p_k: sum_k p_k Gamma_k(theta_inc) (Q,) complex128.
+
+    cos_inc : (Q,) cos(theta_inc) in [0, 1]. probabilities : (Q, K). eps : (K,) complex
+    relative permittivities of the classes (inf: PEC). Differentiable in both inputs."""
+    gamma = fresnel_of_cosine(cos_inc[:, None], eps[None, :], polarization)  # (Q, K)
+    return (probabilities.to(gamma.dtype) * gamma).sum(1)
 
 
 def reflectance(theta_rad, eps, polarization: str = "TE") -> torch.Tensor:

@@ -44,7 +44,7 @@ from typing import Any, Callable
 import pydantic
 
 from .atomic import atomic_path
-from .config import StrictModel, read_toml, validate
+from .config import StrictModel, merge_tables, read_toml, validate
 from .demo import QUICK, SETTINGS_NAME, DemoSettings, load_scene_and_radar, run_demo
 from .errors import RfsdfError
 from .jsonio import to_json
@@ -105,18 +105,10 @@ def _job(index: int, fields: dict, source: str, base: Path) -> Job:
     if spec.voxel_m is not None:
         settings = dataclasses.replace(settings, voxel_m=spec.voxel_m)
     if spec.recon:
-        settings = dataclasses.replace(settings, recon=_merge(settings.recon, spec.recon))
+        settings = dataclasses.replace(settings, recon=merge_tables(settings.recon, spec.recon))
     stem = lambda text: Path(text).stem if text.endswith(".toml") else text  # noqa: E731
     name = f"{index:03d}-{stem(spec.scene)}-{stem(spec.radar)}-seed{spec.seed}"
     return Job(name, spec, settings)
-
-
-def _merge(base: dict, overrides: dict) -> dict:
-    """Nested dict update: tables merge key by key, other values replace."""
-    merged = dict(base)
-    for key, value in overrides.items():
-        merged[key] = _merge(merged[key], value) if isinstance(value, dict) and isinstance(merged.get(key), dict) else value
-    return merged
 
 
 MAX_JOBS = 5000
@@ -144,8 +136,8 @@ def load_sweep(path, *, max_jobs: int = MAX_JOBS) -> list[Job]:
         raise RfsdfError(f"{path}: grid: asks for {count:,} jobs ({sizes or 'no grid'}{listed}), more than the "
                          f"{max_jobs:,} allowed; split the sweep or raise the limit with --max-jobs")
     combos = (dict(zip(spec.grid, values)) for values in itertools.product(*spec.grid.values())) if spec.grid else ()
-    fields = itertools.chain((_merge(spec.defaults, combo) for combo in combos),
-                             (_merge(spec.defaults, job) for job in spec.jobs))
+    fields = itertools.chain((merge_tables(spec.defaults, combo) for combo in combos),
+                             (merge_tables(spec.defaults, job) for job in spec.jobs))
     jobs = [_job(i, f, str(path), path.parent) for i, f in enumerate(fields)]
     _check_jobs(jobs, str(path))
     return jobs

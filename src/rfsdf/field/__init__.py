@@ -1,6 +1,6 @@
-"""Neural fields: positional encoding, the geometry (SDF) network, the reflectivity network."""
+"""Neural fields: positional encoding, the geometry (SDF) network, the reflectivity network, the material head."""
 
 from .encoding import PositionalEncoding, levels_for
-from .networks import RadarField, ReflectivityNetwork, SDFNetwork
+from .networks import MaterialHead, RadarField, ReflectivityNetwork, SDFNetwork
 
-__all__ = ["PositionalEncoding", "levels_for", "SDFNetwork", "ReflectivityNetwork", "RadarField"]
+__all__ = ["PositionalEncoding", "levels_for", "SDFNetwork", "ReflectivityNetwork", "MaterialHead", "RadarField"]

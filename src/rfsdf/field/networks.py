@@ -1,9 +1,13 @@
-"""The networks of a radar scene: geometry f_theta(p) [m] and reflectivity Gamma_phi(p) >= 0.
+"""The networks of a radar scene: geometry f_theta(p) [m], reflectivity Gamma_phi(p) >= 0,
+and the material of each point.
 
 ``SDFNetwork`` is the GeRaF/IDR geometry MLP: Softplus(beta=100) activations, the input
 re-fed midway (skip connection), and the geometric initialisation of SAL (Atzmon & Lipman,
 CVPR 2020) so that f starts close to |p - centre| - r. ``ReflectivityNetwork`` is a small
-MLP on the same encoding. ``RadarField`` holds the shared encoding and both networks.
+MLP on the same encoding (the free reflectivity). ``MaterialHead`` is a softmax over a
+catalogue's material classes fed by the geometry network's last hidden layer, as NeuS feeds
+its colour network: what a point is made of is read where its shape is. ``RadarField``
+holds the shared encoding and the networks.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from torch import nn
 
 from .encoding import PositionalEncoding
 
-__all__ = ["SDFNetwork", "ReflectivityNetwork", "RadarField"]
+__all__ = ["SDFNetwork", "ReflectivityNetwork", "MaterialHead", "RadarField"]
 
 
 class SDFNetwork(nn.Module):
@@ -70,15 +74,17 @@ class SDFNetwork(nn.Module):
         self.layers[last].weight /= slope
         self.layers[last].bias.copy_((self.layers[last].bias - at_radius) / slope)
 
-    def forward(self, encoded: torch.Tensor) -> torch.Tensor:
+    def forward_with_features(self, encoded: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N,) f in normalised units and (N, width) the last hidden layer's activations."""
         h = encoded
-        for index, layer in enumerate(self.layers):
+        for index, layer in enumerate(self.layers[:-1]):
             if index == self.skip:
                 h = torch.cat([h, encoded], dim=1) / math.sqrt(2)
-            h = layer(h)
-            if index < len(self.layers) - 1:
-                h = self.activation(h)
-        return h[:, 0]
+            h = self.activation(layer(h))
+        return self.layers[-1](h)[:, 0], h
+
+    def forward(self, encoded: torch.Tensor) -> torch.Tensor:
+        return self.forward_with_features(encoded)[0]
 
 
 def _fibonacci_sphere(n: int) -> torch.Tensor:
@@ -110,15 +116,35 @@ class ReflectivityNetwork(nn.Module):
         return self.floor + nn.functional.softplus(self.mlp(encoded)[:, 0])
 
 
-class RadarField(nn.Module):
-    """Shared encoding + geometry + reflectivity, in scene units.
+class MaterialHead(nn.Module):
+    """p_psi : geometry features (N, F) -> (N, K) probabilities of K material classes.
 
-    ``sdf(points)`` : (N, 3) [m] -> (N,) [m]; ``reflectivity(points)`` : (N,) >= 0.
+    One hidden layer; the logits start at zero, so every class starts equally likely."""
+
+    def __init__(self, in_dim: int, classes: int, *, width: int = 64):
+        super().__init__()
+        if classes < 1:
+            raise ValueError(f"a material head needs at least one class, got {classes}")
+        self.mlp = nn.Sequential(nn.Linear(in_dim, width), nn.Softplus(beta=10), nn.Linear(width, classes))
+        with torch.no_grad():
+            self.mlp[-1].weight.mul_(0.1)
+            self.mlp[-1].bias.zero_()
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        return torch.softmax(self.mlp(features), dim=1)
+
+
+class RadarField(nn.Module):
+    """Shared encoding + geometry + reflectivity (+ material head), in scene units.
+
+    ``sdf(points)`` : (N, 3) [m] -> (N,) [m]; ``reflectivity(points)`` : (N,) >= 0;
+    ``material(points)`` : (N, K) class probabilities over ``materials`` (catalogue names,
+    ``rfsdf.materials``), when the field has any.
     """
 
     def __init__(self, lower_m, upper_m, *, levels: int, depth: int = 6, width: int = 128,
                  init_radius_m: float | None = None, geometric_init: bool = True,
-                 reflectivity_width: int = 64, reflectivity_floor: float = 0.02):
+                 reflectivity_width: int = 64, reflectivity_floor: float = 0.02, materials: tuple[str, ...] = ()):
         super().__init__()
         self.lower_m, self.upper_m = tuple(map(float, lower_m)), tuple(map(float, upper_m))  # [m]
         self.encoding = PositionalEncoding(lower_m, upper_m, levels)
@@ -128,6 +154,8 @@ class RadarField(nn.Module):
                                    geometric_init=geometric_init)
         self.reflectance = ReflectivityNetwork(self.encoding.out_dim, width=reflectivity_width,
                                                floor=reflectivity_floor)
+        self.materials = tuple(materials)
+        self.material_head = MaterialHead(width, len(materials), width=reflectivity_width) if materials else None
 
     def sdf(self, points: torch.Tensor) -> torch.Tensor:
         return self.geometry(self.encoding(points)) * self.encoding.half_extent_m
@@ -138,6 +166,18 @@ class RadarField(nn.Module):
 
     def reflectivity(self, points: torch.Tensor) -> torch.Tensor:
         return self.reflectance(self.encoding(points))
+
+    def material_features(self, points: torch.Tensor) -> torch.Tensor:
+        """(N, width) the geometry network's last hidden layer at points (N, 3) [m]: what the
+        material head reads."""
+        if self.material_head is None:
+            raise ValueError("this field has no material head (it was fitted with a free reflectivity)")
+        return self.geometry.forward_with_features(self.encoding(points))[1]
+
+    def material(self, points: torch.Tensor) -> torch.Tensor:
+        """(N, K) probabilities of ``self.materials`` at points (N, 3) [m]; differentiable in
+        the head and (through its features) the geometry network."""
+        return self.material_head(self.material_features(points))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         return self.sdf(points)

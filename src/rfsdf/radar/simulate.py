@@ -21,16 +21,22 @@ from .operator import SensingOperator
 from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, scatter
 from .system import Radar
 
-__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH"]
+__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH",
+           "SIMULATED_GAIN"]
+
+SIMULATED_GAIN = 1.0
+"""The radar gain of data this module simulates: their amplitudes are the scattering model's
+own (Fresnel x lobe x area through A, no antenna or receiver gain), so a renderer of the
+same physics predicts them in their units."""
 
 # The data are a Monte Carlo sum over random surface samples, and its error is a speckle that
 # no other sampling reproduces: two samplings of the 2 cm ball (6 views) differ by 21 % of the
 # MF amplitude energy at lambda/3, 5 % at lambda/6 and 1.2 % at lambda/12 (error ~ spacing^2).
-# That speckle is the smooth scenes' only diffuse return: at lambda/6, or with stratified
-# samples, the oblique faces of the wood block and the concrete ring fade (README, "Rough
-# surfaces and the simulator's quadrature"). Stated roughness (rfsdf.roughness) gives a
-# diffuse return that does not depend on the sampling; random samples at lambda/3 stay the
-# default until the README's tables are re-measured on stratified samples of rough scenes.
+# That speckle was the smooth scenes' only diffuse return, and it is what a material estimate
+# would read on oblique faces, so the default samples are stratified (one per stratum of equal
+# area: two samplings of the ball data differ 5 % instead of 19 %, study "roughness"); a
+# diffuse return that does not depend on the sampling comes from stated roughness
+# (rfsdf.roughness). ``stratified=False`` keeps the earlier random samples for comparison.
 SAMPLES_PER_WAVELENGTH = 3
 
 def surface_reflectivity(
@@ -88,15 +94,15 @@ def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, stratified: bool = False, device=None, progress: bool = False,
+    shadows: bool = True, stratified: bool = True, device=None, progress: bool = False,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
     The surface is sampled ``lambda / samples_per_wavelength`` apart (``spacing_m``
     overrides; at most ``max_samples`` samples; rough objects need at most half their
     correlation length, else ValueError); ``stratified`` places them one per stratum of
-    equal area (:meth:`~rfsdf.scene.Scene.sample_surface`), which cuts the quadrature's
-    random error on faces turned away from the radar (study ``roughness``). Noise is added
+    equal area (:meth:`~rfsdf.scene.Scene.sample_surface`; the default), which cuts the
+    quadrature's random error on faces turned away from the radar (study ``roughness``). Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.

@@ -26,6 +26,20 @@ class FieldConfig(StrictModel):
     geometric_init: bool = True
     reflectivity_width: PositiveInt = 64
     reflectivity_floor: NonNegativeFloat = 0.02
+    # the material head's classes (catalogue names, rfsdf.materials): the renderer reflects
+    # each surface sample by the Fresnel coefficient of its material; [] fits a free
+    # reflectivity instead (the option kept for comparison)
+    materials: list[str] = ["metal", "glass", "concrete", "plasterboard", "wood"]
+
+    @field_validator("materials")
+    @classmethod
+    def _catalogue_materials(cls, names: list[str]) -> list[str]:
+        from ..materials import get_material
+
+        canonical = [get_material(name).name for name in names]
+        if len(set(canonical)) != len(canonical):
+            raise ValueError(f"each material class once, got {names}")
+        return canonical
 
 
 class InitConfig(StrictModel):
@@ -96,6 +110,10 @@ class RenderConfig(StrictModel):
 class LossConfig(StrictModel):
     data: str = "amplitude"
     eikonal_weight: NonNegativeFloat = 0.01
+    # mean entropy of the material probabilities on the surface: favours decisive classes
+    material_entropy_weight: NonNegativeFloat = 0.01
+    # cross-entropy against known labels (Problem.material_labels), only where they are given
+    material_label_weight: NonNegativeFloat = 1.0
 
     @field_validator("data")
     @classmethod
@@ -124,6 +142,9 @@ class TrainConfig(StrictModel):
     lr_end: PositiveFloat = 1e-5
     schedule: str = "exponential"
     reflectivity_lr_scale: PositiveFloat = 10.0  # Gamma adapts faster than f: dim, don't delete
+    # the material head's learning rate over lr: at 10 x the demo's 1e-4 it had not left the
+    # uniform start after 100 steps (p 0.21 of 5 classes everywhere)
+    material_lr_scale: PositiveFloat = 100.0
     # f is frozen for this share of the steps while Gamma adapts: started at the true scene,
     # the fit drifts 1.8 mm without the delay, 0.4 mm with 0.4; from the carved, blanked warm
     # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (docs/quality-history.md)

@@ -2,10 +2,11 @@
 
 Data losses take the predicted complex per-view images (v, X) and the observed amplitudes
 (v, X) at the same voxels, and are registered by name in ``DATA_LOSSES``. Radar data carry
-no absolute calibration, so every data loss first scales the prediction by the least-squares
-gain (held constant for the gradient, one gain for all views of the step: relative
-brightness between views is physics, not calibration), and is normalised by the observed
-energy, so 0 is a perfect fit and 1 is a prediction orthogonal to the data.
+no absolute calibration unless the radar gain is known, so a data loss first scales the
+prediction by the least-squares gain (held constant for the gradient, one gain for all views
+of the step: relative brightness between views is physics, not calibration), and is
+normalised by the observed energy, so 0 is a perfect fit and 1 is a prediction orthogonal to
+the data. With a known gain (``fit_gain=False``) the prediction is compared as it is.
 """
 
 from __future__ import annotations
@@ -15,30 +16,53 @@ import torch
 from ..geometry import gradient
 from ..registry import Registry
 
-__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "eikonal_loss", "eikonal_penalty"]
+__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "material_entropy", "material_cross_entropy", "eikonal_loss",
+           "eikonal_penalty"]
 
 DATA_LOSSES: Registry = Registry("data loss")
 
 
-def _gain_fitted_misfit(predicted: torch.Tensor, observed: torch.Tensor) -> torch.Tensor:
-    """sum((g p - o)^2) / sum(o^2) with the least-squares gain g = <p, o> / <p, p>, detached."""
-    with torch.no_grad():
-        gain = (predicted * observed).sum() / (predicted * predicted).sum().clamp(min=torch.finfo(predicted.dtype).tiny)
+def _misfit(predicted: torch.Tensor, observed: torch.Tensor, fit_gain: bool) -> torch.Tensor:
+    """sum((g p - o)^2) / sum(o^2) with the least-squares gain g = <p, o> / <p, p>, detached
+    (``fit_gain``), or g = 1 where the prediction is already in the data's units."""
+    gain = 1.0
+    if fit_gain:
+        with torch.no_grad():
+            gain = (predicted * observed).sum() / (predicted * predicted).sum().clamp(min=torch.finfo(predicted.dtype).tiny)
     return ((gain * predicted - observed) ** 2).sum() / (observed**2).sum().clamp(min=torch.finfo(observed.dtype).tiny)
 
 
 @DATA_LOSSES.register("amplitude")
-def amplitude_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor) -> torch.Tensor:
+def amplitude_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
     """Misfit of MF *amplitudes* |c_hat|: where the glints are and how bright, not the
     carrier phase of each (an absolute phase is not a geometric fact worth fitting).
-    Equals 1 - cos^2 between the amplitude images."""
-    return _gain_fitted_misfit(predicted.abs(), observed_amplitude)
+    With the fitted gain it equals 1 - cos^2 between the amplitude images; ``fit_gain=False``
+    when the radar gain is known (the prediction is in the data's units), so that absolute
+    brightness, and with it each material's |Gamma|, is data too."""
+    return _misfit(predicted.abs(), observed_amplitude, fit_gain)
 
 
 @DATA_LOSSES.register("power")
-def power_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor) -> torch.Tensor:
+def power_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
     """Misfit of MF power |c_hat|^2: weights the brightest glints more than ``amplitude``."""
-    return _gain_fitted_misfit(predicted.abs() ** 2, observed_amplitude**2)
+    return _misfit(predicted.abs() ** 2, observed_amplitude**2, fit_gain)
+
+
+def material_entropy(probabilities: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:
+    """Weighted mean over points of -sum_k p_k log p_k [nats] of (Q, K) class probabilities
+    (``weights`` (Q,), e.g. sample areas; None: equal): 0 when every point is decided,
+    log K when every class is equally likely. Minimising it favours decisive classes."""
+    entropy = -(probabilities * torch.log(probabilities.clamp(min=1e-12))).sum(1)
+    return entropy.mean() if weights is None else (weights * entropy).sum() / weights.sum().clamp(min=1e-30)
+
+
+def material_cross_entropy(probabilities: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    """Mean -log p_label over the points (Q, K) whose label (Q,) int64 is a class index;
+    points labelled -1 (unknown) are left out (0 when none is labelled)."""
+    known = labels >= 0
+    if not bool(known.any()):
+        return probabilities.sum() * 0.0
+    return -torch.log(probabilities[known].gather(1, labels[known, None]).clamp(min=1e-12)).mean()
 
 
 def eikonal_loss(sdf, points: torch.Tensor) -> torch.Tensor:

@@ -15,8 +15,11 @@ the array's exact, shift-variant PSF and its sidelobes, and the same column norm
 as the observed image. Gradients reach theta through the sample positions (the phase of A
 and the geometry of the lobe) and their areas (which grow with the surface's curvature as it
 moves out) and their normals (which turn the lobe, ``surface.project_to_surface``), and phi
-through the reflectivity Gamma_phi >= 0, which stands in for the Fresnel coefficient (a
-material head would feed a permittivity to it instead). Facing and shadows are frozen
+through the reflection of each sample. With a material head (``field.materials``) that is the
+simulator's own Fresnel coefficient of the sample's material at its incidence angle in that
+view, in expectation over the head's class probabilities (``materials.mixture_fresnel``), so
+the data supervise what each surface is made of; without one, a free reflectivity
+Gamma_phi >= 0 stands in for it (kept as an option for comparison). Facing and shadows are frozen
 between refreshes: shadows are traced against the network evaluated on the image grid
 (trilinear), a cheap stand-in for it.
 
@@ -36,6 +39,7 @@ import numpy as np
 import torch
 
 from ..geometry import Grid, interpolated_sdf
+from ..materials import get_material, mixture_fresnel
 from ..progress import progress_bar
 from ..radar import Measurements, SensingOperator
 from ..radar.imaging import require_image_memory
@@ -82,9 +86,12 @@ class CoherentRenderer:
             self._normalise(v, op.adjoint(data.data[v:v + 1].to(self.device), self.voxels))
             for v, op in enumerate(progress_bar(self.operators, desc="observed images", enabled=progress))
         ])
-        self.observed = observed / observed.abs().max()  # (V, N) complex, peak amplitude 1
+        self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
+        self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
+        self.centre_frequency_hz = acq.center_frequency_hz
         self.candidates: SurfaceCandidates | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
+        self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
 
     @property
     def num_views(self) -> int:
@@ -102,6 +109,7 @@ class CoherentRenderer:
         voxel_values_m : (N,) f at the grid's voxel centres (no gradient)."""
         values = voxel_values_m.to(self.device)
         self.candidates = surface_candidates(sdf, self.voxels, values, self.voxel_m, self.spacing_m, generator)
+        self._features = None
         occluder = interpolated_sdf(values, self.grid) if self.shadows else None
         anchors, normals = self.candidates.anchors, self.candidates.normals
         self.lit = torch.stack([
@@ -118,10 +126,32 @@ class CoherentRenderer:
         c = scatter(points, normals, area_m2, reflection, self.tx_centres[view], self.rx_centres[view], **self.lobe)
         return self.operators[view].forward(points, c[None])
 
-    def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True) -> torch.Tensor:
+    def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
+        """(K,) complex128 relative permittivities of catalogue materials at the data's centre
+        frequency (inf for metal): the classes of a material head."""
+        return torch.tensor([complex(get_material(name).permittivity(self.centre_frequency_hz)) for name in materials],
+                            dtype=torch.complex128, device=self.device)
+
+    def surface_materials(self, field, *, geometry: bool = True) -> torch.Tensor | None:
+        """(Q, K) class probabilities at the current surface candidates, or None for a field
+        with a free reflectivity. ``geometry=False``: f held since the last refresh, so the
+        geometry features there are computed once per refresh and only the head is
+        differentiated (a step then costs what it cost with a free reflectivity)."""
+        if getattr(field, "material_head", None) is None:
+            return None
+        if geometry:
+            return field.material(self.candidates.anchors)
+        if self._features is None:
+            with torch.no_grad():
+                self._features = field.material_features(self.candidates.anchors)
+        return field.material_head(self._features)
+
+    def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True,
+                 probabilities: torch.Tensor | None = None) -> torch.Tensor:
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
         ``geometry=False``: f as it was at the last refresh (the caller holds it fixed since),
-        differentiable in Gamma only, and f is not evaluated at all."""
+        differentiable in the reflection only, and f is not evaluated at all. ``probabilities``:
+        :meth:`surface_materials`, when the caller has them already."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         cand = self.candidates
@@ -129,7 +159,21 @@ class CoherentRenderer:
             points, normals, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
         else:
             points, normals, area = cand.projected()
-        amplitude = field.reflectivity(cand.anchors)
+        if probabilities is None:
+            probabilities = self.surface_materials(field)
+        if probabilities is None:
+            amplitude = field.reflectivity(cand.anchors)
+        else:
+            eps = self.class_permittivities(field.materials)
+            complex_dtype = torch.promote_types(points.dtype, torch.complex64)
+
+        def reflection(idx: torch.Tensor):
+            """cos(theta_inc) -> Gamma of the samples ``idx``: their free reflectivity, or the
+            Fresnel coefficient expected from their class probabilities."""
+            if probabilities is None:
+                return lambda _cos: amplitude[idx]
+            return lambda cos: mixture_fresnel(cos, probabilities[idx], eps).to(complex_dtype)
+
         targets = self.voxels[voxel_index]
         images = []
         for v in views.tolist():
@@ -138,6 +182,6 @@ class CoherentRenderer:
                 images.append(torch.zeros(len(voxel_index), dtype=torch.promote_types(points.dtype, torch.complex64),
                                           device=self.device))
                 continue
-            y = self.predict_data(v, points[idx], normals[idx], area[idx], lambda _cos, gamma=amplitude[idx]: gamma)
+            y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx))
             images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

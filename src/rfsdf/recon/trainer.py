@@ -33,7 +33,7 @@ from ..radar.clean import CleanResult, clean_image
 from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import DATA_LOSSES, eikonal_loss
+from .losses import DATA_LOSSES, eikonal_loss, material_cross_entropy, material_entropy
 from .render import RENDERERS
 from .sampling import cell_voxels, data_voxel_probabilities, eikonal_points, pooled_amplitude, sample_data_voxels
 from .schedules import SCHEDULES
@@ -47,12 +47,20 @@ __all__ = ["Problem", "StepRecord", "FitResult", "Trainer"]
 class Problem:
     """What the fit sees: the measurements, the voxel grid of its images, where the data
     came from (a file name, for messages), and optionally their CLEAN of that grid, when
-    the caller has it already (else the warm start computes it)."""
+    the caller has it already (else the warm start computes it).
+
+    ``gain``: the radar gain from the renderer's amplitudes to the data's, when known: 1 for
+    data rfsdf simulated (the renderer is the simulator's physics), a calibrated value for a
+    real radar; None fits one gain at each step, and a material head then learns only the
+    ratios of its surfaces' |Gamma|. ``material_labels``: points (Q, 3) [m] -> (Q,) class
+    indices into the config's materials (-1 unknown), for a cross-entropy term."""
 
     measurements: Measurements
     grid: Grid
     source: str = "measurements"
     clean: CleanResult | None = None
+    gain: float | None = None
+    material_labels: Callable[[torch.Tensor], torch.Tensor] | None = None
 
     def digest(self) -> str:
         """SHA-256 of the samples, the acquisition geometry and the grid (hex, 16 digits)."""
@@ -99,7 +107,8 @@ def _field_kwargs(grid: Grid, config: ReconConfig) -> dict:
     radius = fc.init_radius_m if fc.init_radius_m is not None else extent / 6
     return dict(lower_m=grid.lower_m, upper_m=grid.upper_m, levels=levels, depth=fc.depth, width=fc.width,
                 init_radius_m=radius, geometric_init=fc.geometric_init,
-                reflectivity_width=fc.reflectivity_width, reflectivity_floor=fc.reflectivity_floor)
+                reflectivity_width=fc.reflectivity_width, reflectivity_floor=fc.reflectivity_floor,
+                materials=tuple(fc.materials))
 
 
 def _resumable(config: dict) -> dict:
@@ -120,14 +129,16 @@ class Trainer:
             torch.manual_seed(config.train.seed)
             self.field = RadarField(**self.field_kwargs).to(self.device)
         tc, rc = config.train, config.render
+        head = self.field.material_head
         groups = [{"params": self.field.geometry.parameters(), "lr": tc.lr},
-                  {"params": self.field.reflectance.parameters(), "lr": tc.lr * tc.reflectivity_lr_scale}]
+                  {"params": self.field.reflectance.parameters(), "lr": tc.lr * tc.reflectivity_lr_scale},
+                  {"params": head.parameters() if head is not None else [], "lr": tc.lr * tc.material_lr_scale}]
         self.optimizer = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay)
         schedule = SCHEDULES.get(tc.schedule)
         decay = lambda step: schedule(step, tc.steps, 1.0, tc.lr_end / tc.lr)  # noqa: E731
         # Gamma alone first: a surface the data do not show should dim before it moves.
         delayed = lambda step: decay(step) if step >= tc.geometry_delay_steps else 0.0  # noqa: E731
-        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay])
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = RENDERERS.get(rc.renderer)(
             problem.measurements, problem.grid, element_step=rc.element_step, spacing_m=rc.spacing_m,
@@ -155,7 +166,7 @@ class Trainer:
             "optimizer": self.optimizer.state_dict(), "scheduler": self.scheduler.state_dict(),
             "generator": self.generator.get_state(), "surface": surface,
             "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
-            "data_digest": self.problem.digest(), "data_source": self.problem.source,
+            "data_digest": self.problem.digest(), "data_source": self.problem.source, "gain": self.problem.gain,
         })
         write_log(self.run_dir, [asdict(r) for r in self.log])
 
@@ -243,11 +254,23 @@ class Trainer:
         corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
         voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
         frozen = self.step < cfg.train.geometry_delay_steps
-        predicted = self.renderer(self.field, views, voxels, geometry=not frozen)
+        probabilities = self.renderer.surface_materials(self.field, geometry=not frozen)
+        predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities)
         observed = self.observed[views][:, voxels]
+        known_gain = self.problem.gain is not None and probabilities is not None
+        if known_gain:  # into the units of the observed images (peak 1)
+            predicted = predicted * (self.problem.gain / self.renderer.observed_peak)
         if size > 1:
             predicted, observed = pooled_amplitude(predicted, len(corners)), pooled_amplitude(observed, len(corners))
-        data = self.data_loss(predicted, observed)
+        data = self.data_loss(predicted, observed, fit_gain=not known_gain)
+        terms = {"data": data}
+        if probabilities is not None:
+            terms["material"] = cfg.loss.material_entropy_weight * material_entropy(
+                probabilities, self.renderer.candidates.area_m2)
+            if self.problem.material_labels is not None:
+                labels = self.problem.material_labels(self.renderer.candidates.anchors)
+                terms["material"] = terms["material"] + cfg.loss.material_label_weight * material_cross_entropy(
+                    probabilities, labels)
         grid = self.problem.grid
         eik_points = eikonal_points(grid.lower_m, grid.upper_m, self.renderer.candidates.anchors,
                                     cfg.sampling.eikonal_batch, cfg.sampling.eikonal_near,
@@ -256,7 +279,9 @@ class Trainer:
             eikonal = torch.zeros((), device=self.device)
         else:
             eikonal = eikonal_loss(self.field.sdf, eik_points.to(self.device))
-        return {"data": data, "eikonal": eikonal, "loss": data + cfg.loss.eikonal_weight * eikonal}
+        terms["eikonal"] = eikonal
+        terms["loss"] = data + cfg.loss.eikonal_weight * eikonal + terms.get("material", 0.0)
+        return terms
 
     def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> FitResult:
         """Train to ``config.train.steps``; returns the field and the log. See the module docstring."""

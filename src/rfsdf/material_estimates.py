@@ -1,0 +1,247 @@
+"""What a fitted material head says each surface is made of, per object of a scene (when
+the truth is known) and per connected component of the reconstruction (always).
+
+An estimate is never a bare class: it is the class probabilities averaged over the surface
+some view observes (area-weighted), the class they favour, the real permittivity eps' with
+an interval, and the observed share of that surface. eps' of a point is the mean of the
+dielectric classes' eps' at the data's centre frequency weighted by their probabilities
+(renormalised over the dielectrics: metal has no finite eps'); the interval is the 10th to
+90th percentile of that per-point value over the observed surface (area-weighted), so it
+says how much the surface agrees with itself, not a confidence interval of the data. An
+object whose observed share is below ``MIN_OBSERVED_FRACTION`` is reported but left out of
+the accuracy: what no view sees, no data can tell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+import trimesh
+
+from .materials import get_material
+from .radar import Acquisition
+from .radar.coverage import observed_mask
+
+__all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
+           "object_materials", "component_materials", "class_accuracy", "point_eps_real", "paint_mesh",
+           "calibration_text", "materials_table", "run_materials"]
+
+MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
+_CHUNK = 1 << 15
+_INTERVAL = (0.1, 0.9)  # the percentiles of per-point eps' that make the interval
+_COMPONENT_SAMPLES = 4000  # surface samples per connected component of the reconstruction
+
+
+@dataclass(frozen=True)
+class MaterialEstimate:
+    """One surface's material: ``probabilities`` per class (area-weighted over its observed
+    part), the ``predicted`` class, ``eps_real`` (None when metal is predicted) and its
+    ``eps_real_interval``, ``observed_fraction`` of its area, and for
+    a scene's object its ``true`` material and that material's ``true_eps_real``."""
+
+    name: str
+    predicted: str
+    probabilities: dict[str, float]
+    eps_real: float | None
+    eps_real_interval: tuple[float, float] | None
+    observed_fraction: float
+    true: str | None = None
+    true_eps_real: float | None = None
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class MaterialReport:
+    """Per-object and per-component estimates, the class accuracy over the objects observed
+    enough, and how the amplitudes were calibrated."""
+
+    objects: list[MaterialEstimate]
+    components: list[MaterialEstimate]
+    accuracy: float | None
+    calibration: str
+
+    def as_dict(self) -> dict:
+        return {"objects": [o.as_dict() for o in self.objects], "components": [c.as_dict() for c in self.components],
+                "accuracy": self.accuracy, "min_observed_fraction": MIN_OBSERVED_FRACTION,
+                "calibration": self.calibration}
+
+
+def _probabilities(field, points: torch.Tensor) -> torch.Tensor:
+    """(N, K) class probabilities of the field at points (N, 3) [m], chunked, no gradient."""
+    device = next(field.parameters()).device
+    with torch.no_grad():
+        return torch.cat([field.material(chunk.to(device).float()).cpu().double()
+                          for chunk in points.split(_CHUNK)]) if len(points) else torch.zeros(0, len(field.materials))
+
+
+def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, quantiles) -> list[float]:
+    order = np.argsort(values)
+    cumulative = np.cumsum(weights[order]) / weights.sum()
+    return [float(values[order][min(np.searchsorted(cumulative, q), len(values) - 1)]) for q in quantiles]
+
+
+def point_eps_real(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """(Q,) eps' of each point: the dielectric classes' eps' at ``frequency_hz`` weighted by
+    their probabilities (Q, K), renormalised over the dielectrics; NaN with no dielectric class."""
+    eps = np.array([get_material(c).permittivity(frequency_hz).real for c in classes])
+    dielectric = np.isfinite(eps)
+    p = probabilities.detach().cpu().double().numpy()[:, dielectric]
+    if not dielectric.any():
+        return np.full(len(p), np.nan)
+    return (p * eps[dielectric]).sum(1) / np.maximum(p.sum(1), 1e-12)
+
+
+def _estimate(name: str, probabilities: torch.Tensor, area_m2: torch.Tensor, classes: tuple[str, ...],
+              frequency_hz: float, observed_fraction: float, true=None) -> MaterialEstimate:
+    """The estimate of one surface from the probabilities (Q, K) at its samples (areas (Q,))."""
+    weights = area_m2.double() / area_m2.double().sum()
+    mean = (weights[:, None] * probabilities).sum(0)
+    predicted = classes[int(mean.argmax())]
+    eps_real = interval = None
+    per_point = point_eps_real(probabilities, classes, frequency_hz)
+    if not get_material(predicted).pec and np.isfinite(per_point).all():
+        eps_real = float((weights.numpy() * per_point).sum())
+        interval = tuple(_weighted_quantiles(per_point, weights.numpy(), _INTERVAL))
+    true_eps = None if true is None or true.pec else float(true.permittivity(frequency_hz).real)
+    return MaterialEstimate(name, predicted, {c: float(v) for c, v in zip(classes, mean)}, eps_real, interval,
+                            observed_fraction, None if true is None else true.name, true_eps)
+
+
+def object_materials(field, scene, acquisition: Acquisition, *, spacing_m: float = 0.002,
+                     max_samples: int = 40_000, seed: int = 0) -> list[MaterialEstimate]:
+    """One estimate per object of ``scene``, from the field's head on the object's true
+    surface where some view of ``acquisition`` observes it (all of it when none does)."""
+    samples = scene.sample_surface(spacing_m, seed=seed, max_samples=max_samples, stratified=True)
+    observed = observed_mask(samples.points, samples.normals, acquisition, scene.sdf)
+    estimates = []
+    for index, obj in enumerate(scene.objects):
+        mine = samples.object_index == index
+        seen = mine & observed
+        area = samples.area_m2
+        fraction = float(area[seen].sum() / area[mine].sum()) if bool(mine.any()) else 0.0
+        use = seen if bool(seen.any()) else mine
+        estimates.append(_estimate(obj.name, _probabilities(field, samples.points[use]), area[use], field.materials,
+                                   acquisition.center_frequency_hz, fraction, obj.material))
+    return estimates
+
+
+def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *,
+                        seed: int = 0) -> list[MaterialEstimate]:
+    """One estimate per connected component of the reconstruction's mesh (largest first),
+    from samples of its surface, the observed share by the views' facing and cones (no
+    shadows: tracing the neural field for every sample and view would cost more than the fit)."""
+    components = sorted(mesh.split(only_watertight=False), key=lambda m: -m.area)
+    estimates = []
+    for index, component in enumerate(components):
+        points, faces = trimesh.sample.sample_surface(component, _COMPONENT_SAMPLES, seed=seed + index)
+        points = torch.as_tensor(np.asarray(points))
+        normals = torch.as_tensor(np.asarray(component.face_normals[faces]))
+        area = torch.full((len(points),), component.area / len(points), dtype=torch.float64)
+        seen = observed_mask(points, normals, acquisition, None)
+        use = seen if bool(seen.any()) else torch.ones(len(points), dtype=torch.bool)
+        estimates.append(_estimate(f"component {index} ({component.area * 1e4:.1f} cm^2)",
+                                   _probabilities(field, points[use]), area[use], field.materials,
+                                   acquisition.center_frequency_hz, float(seen.double().mean())))
+    return estimates
+
+
+def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
+    """Share of the objects observed at least ``MIN_OBSERVED_FRACTION`` whose predicted class
+    is their true material (None when no object is observed enough)."""
+    counted = [o for o in objects if o.observed_fraction >= MIN_OBSERVED_FRACTION]
+    return None if not counted else sum(o.predicted == o.true for o in counted) / len(counted)
+
+
+def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *, scene=None,
+                       calibration: str, seed: int = 0) -> MaterialReport:
+    """The full report: per object (with a scene), per component, the accuracy."""
+    objects = [] if scene is None else object_materials(field, scene, acquisition, seed=seed)
+    return MaterialReport(objects, component_materials(field, mesh, acquisition, seed=seed), class_accuracy(objects),
+                          calibration)
+
+
+def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float) -> trimesh.Trimesh:
+    """``mesh`` with per-vertex properties that PLY files keep: ``material_class`` (int32 index
+    into ``field.materials``, in the run's config.toml), ``material_probability`` (float32,
+    that class's) and ``eps_real`` (float32 at ``frequency_hz``; NaN where metal leads)."""
+    probabilities = _probabilities(field, torch.as_tensor(np.asarray(mesh.vertices)))
+    best, index = probabilities.max(1)
+    eps = point_eps_real(probabilities, field.materials, frequency_hz)
+    pec = np.array([get_material(c).pec for c in field.materials])[index.numpy()]
+    painted = mesh.copy()
+    painted.vertex_attributes.update(material_class=index.numpy().astype(np.int32),
+                                     material_probability=best.numpy().astype(np.float32),
+                                     eps_real=np.where(pec, np.nan, eps).astype(np.float32))
+    return painted
+
+
+def calibration_text(gain: float | None) -> str:
+    """How a fit's amplitudes were calibrated, in words, from its Problem.gain."""
+    if gain is None:
+        return "relative: one gain fitted at each step, so only the ratios of the surfaces' |Gamma| are data"
+    return f"known radar gain {gain:g}"
+
+
+def materials_table(materials: dict) -> str:
+    """The material estimates of a result (``MaterialReport.as_dict()``, as in metrics.json):
+    one line per object and per component, then the accuracy and the calibration."""
+    def line(e: dict) -> str:
+        eps = "-" if e["eps_real"] is None else f"{e['eps_real']:.2f} [{e['eps_real_interval'][0]:.2f}, " \
+                                              f"{e['eps_real_interval'][1]:.2f}]"
+        truth = "" if e.get("true") is None else f"{e['true']:<13}"
+        best = max(e["probabilities"].values())
+        return f"  {e['name']:<26}{truth}{e['predicted']:<13}{best:>6.2f}  {eps:<22}{e['observed_fraction']:>6.0%}"
+
+    head = f"  {'':<26}" + ("true         " if materials["objects"] else "")
+    lines = ["materials (the fit's material head; eps' [10-90 % of the surface]; observed share):",
+             head + f"{'predicted':<13}{'p':>6}  {'eps_real':<22}{'seen':>6}"]
+    lines += [line(e) for e in materials["objects"]] + [line(e) for e in materials["components"]]
+    accuracy = materials["accuracy"]
+    lines.append(f"  accuracy {'-' if accuracy is None else f'{accuracy:.0%}'} over objects at least "
+                 f"{materials['min_observed_fraction']:.0%} observed; calibration: {materials['calibration']}")
+    return "\n".join(lines)
+
+
+def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> str:
+    """The table of :func:`materials_table` for a demo folder (its metrics.json) or a
+    ``reconstruct`` run folder (its field's head on its mesh.ply, seen by the views of the
+    measurements at ``data_path``, default the file its checkpoint names; rows per object
+    of the scene ``scene_name`` when given)."""
+    import json
+    from pathlib import Path
+
+    from .errors import RfsdfError
+    from .limits import input_file
+    from .mesh import extract_mesh
+    from .radar import read_measurements
+    from .recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
+    from .recon import load_field
+    from .scene import load_scene
+
+    folder = Path(folder)
+    if (folder / "metrics.json").is_file():
+        try:
+            materials = json.loads(input_file(folder / "metrics.json").read_text()).get("materials")
+        except (ValueError, AttributeError) as exc:
+            raise RfsdfError(f"{folder / 'metrics.json'}: not readable JSON ({exc})") from None
+        if materials is None:
+            raise RfsdfError(f"{folder / 'metrics.json'}: materials: the fit had no material head (--no-materials)")
+        return materials_table(materials)
+    field = load_field(folder)
+    if field.material_head is None:
+        raise RfsdfError(f"{folder}: the fit had no material head (field.materials = [] in its config.toml)")
+    state = read_checkpoint(folder / CHECKPOINT_NAME, "cpu")
+    data_path = data_path or state.get("data_source")
+    if data_path is None or not Path(data_path).is_file():
+        raise RfsdfError(f"{folder}: the measurements it was fitted on ({data_path}) are not at hand; pass --data")
+    acquisition = read_measurements(data_path).acquisition
+    mesh_path = folder / "mesh.ply"
+    mesh = (trimesh.load(mesh_path, force="mesh") if mesh_path.is_file()
+            else extract_mesh(field.sdf, field.lower_m, field.upper_m, 96))
+    scene = load_scene(scene_name) if scene_name is not None else None
+    report = estimate_materials(field, mesh, acquisition, scene=scene, calibration=calibration_text(state.get("gain")))
+    return materials_table(report.as_dict())
