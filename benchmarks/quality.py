@@ -6,7 +6,8 @@ a fit step.
 Usage: python benchmarks/quality.py [--scene S] [--radar R] [--out benchmarks/results/quality-SCENE-RADAR.json]
        [--recon '{"train": {"geometry_delay": 0}}']   (reconstruction settings over the defaults)
        [--voxel-mm 4]   (image voxel edge; the default is the demo's)
-       [--samples-per-wavelength 6] [--stratified]   (the simulator's surface quadrature)
+       [--samples-per-wavelength 6] [--random-samples]   (the simulator's surface quadrature; stratified
+       is the default)  [--known-gain]   (give the fit the simulator's radar gain: absolute materials)
 """
 
 from __future__ import annotations
@@ -30,14 +31,15 @@ def main() -> None:
     parser.add_argument("--voxel-mm", type=float, default=DemoSettings.voxel_m * 1e3, help="image voxel edge [mm]")
     parser.add_argument("--samples-per-wavelength", type=float, default=DemoSettings.samples_per_wavelength,
                         help="the simulator's surface samples per wavelength")
-    parser.add_argument("--stratified", action="store_true",
-                        help="the simulator's samples one per stratum of equal area")
+    parser.add_argument("--random-samples", action="store_true",
+                        help="the simulator's earlier independent random samples instead of stratified ones")
+    parser.add_argument("--known-gain", action="store_true", help="the fit knows the simulator's radar gain")
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/quality-{Path(args.scene).stem}-{Path(args.radar).stem}.json")
 
     settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar, recon=args.recon,
                                    voxel_m=args.voxel_mm * 1e-3, samples_per_wavelength=args.samples_per_wavelength,
-                                   stratified_samples=args.stratified)
+                                   stratified_samples=not args.random_samples, known_gain=args.known_gain)
     with tempfile.TemporaryDirectory() as folder:
         result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)

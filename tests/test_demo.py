@@ -5,6 +5,7 @@ import re
 
 import numpy as np
 import pytest
+import trimesh
 from click.testing import CliRunner
 from matplotlib.image import imread
 
@@ -42,6 +43,18 @@ def test_quick_demo_runs_end_to_end_and_resumes(quick_demo):
     assert baseline["fraction"] in map(float, baseline["sweep_chamfer_mm"])
     assert metrics["fit_steps"] == 6 and metrics["seconds_per_step"] > 0
     assert "GeRaF (neural)" in result.output and "recall metal_ball" in result.output
+    materials = metrics["materials"]
+    assert [o["name"] for o in materials["objects"]] == list(scores["objects"])
+    for estimate in materials["objects"]:
+        assert sum(estimate["probabilities"].values()) == pytest.approx(1.0, abs=1e-6)
+        assert estimate["predicted"] in estimate["probabilities"] and 0 <= estimate["observed_fraction"] <= 1
+    assert {o["true"] for o in materials["objects"]} == {"metal", "wood", "glass", "concrete", "plasterboard"}
+    assert len(materials["components"]) >= 1 and materials["calibration"].startswith("relative")
+    vertices = trimesh.load(out / "neural.ply", force="mesh").metadata["_ply_raw"]["vertex"]["data"]
+    assert {"material_class", "material_probability", "eps_real"} <= set(vertices.dtype.names)
+    assert vertices["material_class"].max() < 5 and (vertices["material_probability"] >= 0.2 - 1e-6).all()
+    table = runner.invoke(main, ["materials", str(out)])
+    assert table.exit_code == 0 and "concrete_ring" in table.output and "calibration: relative" in table.output
     log = result.stderr  # not a terminal, as in a batch job's log: no redraws, few lines
     assert "\r" not in log and log.count("\n") < 200, log[:2000]
     log_lines = (out / "run" / "log.csv").read_text().count("\n")
@@ -60,12 +73,13 @@ def test_quick_demo_runs_end_to_end_and_resumes(quick_demo):
 def test_the_demo_report_holds_every_section_and_no_network_reference(quick_demo):
     out, _ = quick_demo
     page = (out / "report.html").read_text()
-    for key in ("summary", "images", "slices", "training", "metrics", "views3d"):
+    for key in ("summary", "images", "slices", "training", "metrics", "materials", "views3d"):
         assert f'<section id="{key}">' in page, key
     for name in ("metal_ball", "notched_block", "GeRaF (neural)", "CLEAN detection", "signed distance",
                  "observed", "range resolution c/2B = 37.5 mm", "lambda R / 2D = 11.9 mm at R = 0.75 m", "Tx", "Rx"):
         assert name in page, name
-    assert page.count('class="plotly-graph-div"') == 4
+    assert page.count('class="plotly-graph-div"') == 5  # errors of two meshes, materials, observed, views
+    assert "coloured by the material head's class" in page and "accuracy" in page
     assert re.search(r"<(script|link|img)[^>]*(src|href)=\"?https?:", page) is None  # all inline: no network
 
 

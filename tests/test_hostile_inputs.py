@@ -344,3 +344,9 @@ def test_material_inputs_are_one_line(tmp_path, tiny_files):
     demo.mkdir()
     (demo / "metrics.json").write_text(json.dumps({"methods": {}, "materials": None}))
     assert "metrics.json: materials: the fit had no material head" in _refused(["materials", demo], tmp_path)
+    estimate = {"name": "ball", "predicted": "metal", "probabilities": {"metal": 1.0}, "eps_real": None,
+                "eps_real_interval": None, "observed_fraction": "lots"}
+    (demo / "metrics.json").write_text(json.dumps({"materials": {
+        "objects": [estimate], "components": [], "accuracy": None, "min_observed_fraction": 0.15, "calibration": ""}}))
+    line = _refused(["materials", demo], tmp_path)
+    assert "metrics.json: materials: objects[0].observed_fraction: Input should be a valid number" in line, line

@@ -17,16 +17,18 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
+import pydantic
 import torch
 import trimesh
 
+from .config import validate
 from .materials import get_material
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
            "object_materials", "component_materials", "class_accuracy", "point_eps_real", "paint_mesh",
-           "calibration_text", "materials_table", "run_materials"]
+           "check_materials_dict", "calibration_text", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 _CHUNK = 1 << 15
@@ -179,6 +181,25 @@ def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float) -> trimesh.Tri
     return painted
 
 
+class _ReportFields(pydantic.BaseModel):
+    """What a reader needs of metrics.json's "materials" (``MaterialReport.as_dict()``)."""
+
+    model_config = pydantic.ConfigDict(extra="allow", allow_inf_nan=False)
+
+    objects: list[MaterialEstimate]  # validated as the dataclass's fields
+    components: list[MaterialEstimate]
+    accuracy: float | None
+    min_observed_fraction: float
+    calibration: str
+
+
+def check_materials_dict(materials, source: str) -> dict:
+    """``materials`` as read from a file, refused in one line naming ``source`` and the field
+    when it is not a report :func:`materials_table` can print."""
+    validate(_ReportFields, materials, f"{source}: materials")
+    return materials
+
+
 def calibration_text(gain: float | None) -> str:
     """How a fit's amplitudes were calibrated, in words, from its Problem.gain."""
     if gain is None:
@@ -230,7 +251,7 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
             raise RfsdfError(f"{folder / 'metrics.json'}: not readable JSON ({exc})") from None
         if materials is None:
             raise RfsdfError(f"{folder / 'metrics.json'}: materials: the fit had no material head (--no-materials)")
-        return materials_table(materials)
+        return materials_table(check_materials_dict(materials, str(folder / "metrics.json")))
     field = load_field(folder)
     if field.material_head is None:
         raise RfsdfError(f"{folder}: the fit had no material head (field.materials = [] in its config.toml)")

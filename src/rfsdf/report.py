@@ -35,6 +35,7 @@ from .config import validate
 from .demo import SETTINGS_NAME, metrics_rows
 from .errors import RfsdfError
 from .limits import input_file
+from .material_estimates import check_materials_dict, materials_table
 from .mesh import extract_mesh
 from .radar import load_radar, read_measurements
 from .radar.coverage import observed_mask
@@ -44,7 +45,7 @@ from .recon import load_field
 from .recon.checkpoint import CHECKPOINT_NAME, CONFIG_NAME, read_log
 from .scene import load_scene
 from .viz import plot_object_slices, plot_sdf_slices, plot_training_curves
-from .viz.scene3d import error_figure, figures_html, mesh_figure, observed_figure, views_figure
+from .viz.scene3d import error_figure, figures_html, material_figure, mesh_figure, observed_figure, views_figure
 
 __all__ = ["REPORT_NAME", "Section", "write_report", "write_view"]
 
@@ -179,6 +180,9 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     if not all(isinstance(settings.get(key), str) for key in ("scene", "radar")):
         raise RfsdfError(f"{folder / SETTINGS_NAME}: scene, radar: missing or not names")
     validate(_DemoMetrics, result, f"{folder / 'metrics.json'}")
+    materials = result.get("materials")
+    if materials is not None:
+        check_materials_dict(materials, str(folder / "metrics.json"))
     labels, rows = metrics_rows(result)
     fraction = next(iter(result["methods"].values()))["observed_fraction"]
     neural, baselines = result["methods"]["neural"], {name: result["methods"][name] for name in _BASELINES}
@@ -213,6 +217,9 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
         views_figure(truth, acquisition.tx_m.numpy(), acquisition.rx_m.numpy(),
                      f"true surface and the radar's {acquisition.shape[0]} views (Tx red, Rx blue)"),
     ]
+    if materials is not None:
+        views.insert(1, material_figure(_load_mesh(folder / "neural.ply"), partial(_face_classes, field),
+                                        field.materials, "GeRaF reconstruction, coloured by the material head's class"))
     sections = [
         Section("summary", "Scene and radar",
                 _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
@@ -223,9 +230,19 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
         Section("slices", "SDF slices through each object", _png(object_slices, "object slices")),
         Section("training", "Training curves", _png(training, "training curves")),
         Section("metrics", "Metrics against the truth", metrics),
+        *([Section("materials", "Materials: truth against prediction", _pre(materials_table(materials)))]
+          if materials is not None else []),
         Section("views3d", "3-D views (drag to turn, scroll to zoom)", "".join(figures_html(views))),
     ]
     return f"rfsdf demo: scene {scene.name!r}, radar {radar.name!r}", sections
+
+
+def _face_classes(field, centres: np.ndarray) -> np.ndarray:
+    """(F,) the material head's most likely class at face centres (F, 3) [m]."""
+    import torch
+
+    with torch.no_grad():
+        return field.material(torch.tensor(np.asarray(centres), dtype=torch.float32)).argmax(1).numpy()
 
 
 def _run_sections(folder: Path) -> tuple[str, list[Section]]:

@@ -18,7 +18,7 @@ import torch
 import trimesh
 
 __all__ = ["MAX_FACES", "TRUTH_FACES", "decimated", "signed_distance_mm", "error_figure", "observed_figure", "views_figure",
-           "mesh_figure", "figures_html"]
+           "material_figure", "mesh_figure", "figures_html"]
 
 MAX_FACES = 30_000
 TRUTH_FACES = 15_000  # the true surface, drawn as context or coloured by a costly per-face mask
@@ -102,6 +102,24 @@ def views_figure(truth: trimesh.Trimesh, tx_m: np.ndarray, rx_m: np.ndarray, tit
                                    name=label, marker=dict(size=2, color=colour), text=[f"view {v}" for v in views],
                                    hovertemplate="%{text}<extra>" + label + "</extra>"))
     return _figure(traces, title)
+
+
+_CLASS_COLOURS = ("rgb(110,110,120)", "rgb(60,160,220)", "rgb(170,160,140)", "rgb(240,230,200)", "rgb(190,120,60)",
+                  "rgb(120,200,120)", "rgb(220,90,160)", "rgb(250,200,40)")
+
+
+def material_figure(mesh: trimesh.Trimesh, face_class: Callable[[np.ndarray], np.ndarray], classes: Sequence[str],
+                    title: str) -> go.Figure:
+    """``mesh`` with each face coloured by its predicted material class: ``face_class(centres
+    (F, 3) [m]) -> (F,) int`` indexes ``classes`` (one colour each, named on the colour bar)."""
+    mesh = decimated(mesh)
+    index = np.asarray(face_class(mesh.triangles_center), float)
+    k = len(classes)
+    colours = [_CLASS_COLOURS[i % len(_CLASS_COLOURS)] for i in range(k)]
+    colorscale = [[edge / k, colours[min(i, k - 1)]] for i in range(k) for edge in (i, i + 1)]
+    trace = _surface(mesh, "reconstruction", index + 0.5, colorscale=colorscale, cmin=0.0, cmax=float(k),
+                     colorbar=dict(title="material", tickvals=[i + 0.5 for i in range(k)], ticktext=list(classes)))
+    return _figure([trace], title)
 
 
 def mesh_figure(mesh: trimesh.Trimesh, title: str) -> go.Figure:
