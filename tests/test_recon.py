@@ -3,6 +3,8 @@ a tiny fit, checkpoints and registries."""
 
 import dataclasses
 import math
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -230,44 +232,56 @@ def _mean_radius(field, renderer) -> float:
         return float(project_to_surface(field.sdf, renderer.candidates)[0].norm(dim=1).mean())
 
 
-@pytest.mark.parametrize("threads", [1, 4])
-def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, tmp_path, threads):
-    """From a 3 mm dilation into the basin of the truth: within lambda/2, at 1 and 4 torch
-    threads (the sums' last bits, and with them the fit's path, follow the thread count and
-    the CPU). Not closer: with 6 views of a 4 cm array, the amplitude loss of the ball's
-    radius ripples with period about a millimetre (the glint and the limb interfere;
-    measured: local minima near 20, 21 and 22 mm of about the same depth), and the fit stops
-    in one of them. It used to reach lambda/4 helped by a bias: with frozen sample areas the
-    gradient said a sphere brightens as it shrinks, and pulled every convex surface inward
-    (docs/quality-history.md, "The area term"). f moves from the first step (one uniform
-    ball: Gamma has no brightness to explain first).
+def _tiny_fit(data, seed: int) -> tuple[float, float, list]:
+    """The fit of a field regressed onto the ball 3 mm too large: its mean radius [m] before
+    and after 40 steps, and its log (``seed``: the field's initialisation, the fit's and the
+    regression's draws). ``benchmarks/tiny_fit_margin.py`` measures its margins."""
+    with tempfile.TemporaryDirectory() as folder:
+        trainer = Trainer(Problem(data, _grid()),
+                          _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0, seed=seed), Path(folder) / "run")
+        dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
+        fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
+                     eikonal_weight=0.1, generator=torch.Generator().manual_seed(seed))
+        start = _mean_radius(trainer.field, trainer.renderer)
+        fit = trainer.fit()
+        assert len(fit.log) == 40 and all(math.isfinite(r.data) for r in fit.log)
+        return start, _mean_radius(fit.field, trainer.renderer), fit.log
 
-    Margins, measured over seeds 0-11 at 1 thread and 0-5 at 2 and 4 threads (24 fits, 22.8-
-    23.3 mm at the start): the fitted radius lies 18.80-21.63 mm, at most 1.63 mm from the
-    truth (lambda/2 = 1.90 mm), and every fit moved at least 1.45 mm inward; seed 0 (this
-    test) ends at 20.28 mm with both thread counts. The data loss is not asserted: each step
-    scores a fresh random batch of voxels against a fresh random surface sampling, and two
-    samplings of one fitted field score 0.07 and 0.14, more than the fit's progress; the mean
-    of the last five steps was above that of the first five in 4 of the 24 fits."""
+
+@pytest.mark.parametrize("threads", [1, 4])
+def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, threads):
+    """From a 3 mm dilation towards the truth, at 1 and at 4 torch threads (the sums' last
+    bits, and with them the fit's path, follow the thread count and the CPU), judged over
+    five seeds: every fit moves inward, and the median ends within lambda/2, having moved
+    more than lambda/4. Not each fit within lambda/2: with 6 views of a 4 cm array the
+    amplitude loss of the ball's radius ripples with period about a millimetre (the glint
+    and the limb interfere; local minima near 20, 21 and 22 mm of about the same depth), and
+    a fit stops in one of them. It used to reach lambda/4 helped by a bias: with frozen
+    sample areas the gradient said a sphere brightens as it shrinks, and pulled every convex
+    surface inward (docs/quality-history.md, "The area term").
+
+    Margins (``benchmarks/tiny_fit_margin.py`` -> results/tiny_fit_margin.json: seeds 0-11
+    at 1 thread, 0-5 at 2 and 4, data simulated at that count): every fit moved inward, by
+    0.64 mm at least (seed 1, which stops in the 22 mm minimum, 2.32 mm off, at every thread
+    count: the one fit in twelve beyond lambda/2 = 1.90 mm); seeds 0-4 end 0.11, 2.32, 1.71,
+    0.28, 0.56 mm off (median 0.56) at 1, 2 and 4 threads alike, having moved 2.75 mm
+    (median). Coarse-to-fine cells (``cell_voxels_start`` 3 or 4) do not lift the ripple
+    minima (seed 6 stops at 22.5-23.1 mm). The data loss is not asserted: each step scores a
+    fresh random batch of voxels against a fresh random surface sampling, and the mean of
+    the last five steps was above that of the first five in 7 of the 24 fits."""
     _, data = sphere_data
     default = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        trainer = Trainer(Problem(data, _grid()), _config(steps=40, lr=5e-4, lr_end=5e-5, geometry_delay=0.0),
-                          tmp_path / "run")
-        dilated = lambda p: p.norm(dim=1) - (RADIUS + 0.003)  # noqa: E731
-        fit_to_image(trainer.field, (-0.06,) * 3, (0.06,) * 3, dilated, None, steps=400, lr=3e-3, batch=2048,
-                     eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
-        start = _mean_radius(trainer.field, trainer.renderer)
-        assert start == pytest.approx(RADIUS + 0.003, abs=3e-4)
-        fit = trainer.fit()
-        end = _mean_radius(fit.field, trainer.renderer)
+        radii = np.array([_tiny_fit(data, seed)[:2] for seed in range(5)])  # (seed, start/end) [m]
     finally:
         torch.set_num_threads(default)
+    start, end = radii[:, 0], radii[:, 1]
     wavelength = data.acquisition.wavelength_m
-    assert len(fit.log) == 40 and all(math.isfinite(r.data) for r in fit.log)
-    assert end == pytest.approx(RADIUS, abs=wavelength / 2)
-    assert start - end > wavelength / 4  # towards the truth, not merely inside a wide tolerance
+    assert np.all(np.abs(start - (RADIUS + 0.003)) < 3e-4), start
+    assert np.all(end < start), radii
+    assert np.median(np.abs(end - RADIUS)) < wavelength / 2, radii
+    assert np.median(start - end) > wavelength / 4, radii
 
 
 def test_warm_start_points_near_the_surface_fit_a_small_object():
