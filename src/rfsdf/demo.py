@@ -35,8 +35,8 @@ import numpy as np
 import torch
 
 from .atomic import atomic_path
-from .config import validate
 from .baseline import best_threshold_mesh, detection_mesh
+from .config import validate
 from .device import resolve_device
 from .errors import RfsdfError
 from .geometry import Grid
@@ -56,8 +56,8 @@ from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "MethodResult", "DemoResult", "SETTINGS_NAME",
-           "run_demo", "metrics_rows", "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "MethodResult", "DemoResult",
+           "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -231,17 +231,18 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=measurements.acquisition, occluder=scene.sdf))
     neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
-    export_mesh(neural, out / "neural.ply")
+    has_head = fit.field.material_head is not None  # its mesh carries each vertex's material
+    export_mesh(paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz) if has_head else neural,
+                out / "neural.ply")
     warm = extract_mesh(fit.warm_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
     export_mesh(warm, out / "neural-warm-start.ply")
     methods = {"neural": MethodResult("GeRaF (neural)", score(neural)),
                "neural_warm_start": MethodResult("its warm start", score(warm))}
     lap("mesh_and_evaluate_s")
     materials = None
-    if fit.field.material_head is not None:
+    if has_head:
         materials = estimate_materials(fit.field, neural, measurements.acquisition, scene=scene, seed=settings.seed,
                                        calibration=calibration_text(problem.gain))
-        export_mesh(paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz), out / "neural.ply")
         lap("materials_s")
 
     reference = scene.ground_truth_mesh()

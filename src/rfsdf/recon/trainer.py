@@ -52,7 +52,8 @@ class Problem:
     ``gain``: the radar gain from the renderer's amplitudes to the data's, when known: 1 for
     data rfsdf simulated (the renderer is the simulator's physics), a calibrated value for a
     real radar; None fits one gain at each step, and a material head then learns only the
-    ratios of its surfaces' |Gamma|. ``material_labels``: points (Q, 3) [m] -> (Q,) class
+    ratios of its surfaces' |Gamma| (a free reflectivity always has its gain fitted: it
+    carries its own scale). ``material_labels``: points (Q, 3) [m] -> (Q,) class
     indices into the config's materials (-1 unknown), for a cross-entropy term."""
 
     measurements: Measurements
