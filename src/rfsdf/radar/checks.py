@@ -15,7 +15,7 @@ from .acquisition import SPEED_OF_LIGHT
 from .system import Radar
 from .waveform import unambiguous_range_m
 
-__all__ = ["check_radar_for_scene", "check_materials_in_band", "max_virtual_spacing_m"]
+__all__ = ["check_radar_for_scene", "check_material_in_band", "check_materials_in_band", "max_virtual_spacing_m"]
 
 
 def _corners(lower_m, upper_m) -> np.ndarray:
@@ -68,13 +68,18 @@ def check_radar_for_scene(radar: Radar, lower_m, upper_m, *, source: str = "rada
                          f"larger views.distance_m")
 
 
+def check_material_in_band(material, radar: Radar, *, where: str) -> None:
+    """Raise RfsdfError 'where: reason' when ``material`` (a :class:`~rfsdf.materials.Material`)
+    has no permittivity model over the radar's band (e.g. ITU-R brick stops at 40 GHz)."""
+    try:
+        for frequency_hz in (float(np.min(radar.frequencies_hz)), float(np.max(radar.frequencies_hz))):
+            material.permittivity(frequency_hz)
+    except ValueError as exc:
+        raise RfsdfError(f"{where}: {exc}") from None
+
+
 def check_materials_in_band(scene, radar: Radar, *, source: str = "scene") -> None:
-    """Raise RfsdfError when an object's material has no permittivity model over the radar's
-    band (e.g. ITU-R brick stops at 40 GHz), before any work rather than mid-simulation."""
-    band = (float(np.min(radar.frequencies_hz)), float(np.max(radar.frequencies_hz)))
+    """:func:`check_material_in_band` for every object of ``scene``, before any work rather
+    than mid-simulation."""
     for obj in scene.objects:
-        try:
-            for frequency_hz in band:
-                obj.material.permittivity(frequency_hz)
-        except ValueError as exc:
-            raise RfsdfError(f"{source}: object {obj.name!r}: {exc}") from None
+        check_material_in_band(obj.material, radar, where=f"{source}: object {obj.name!r}")
