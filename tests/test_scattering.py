@@ -12,10 +12,11 @@ from rfsdf.radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, 
 
 TX = np.array([0.0, 0.0, 1.0])
 RX = np.array([0.1, 0.0, 1.0])
+K = 2 * math.pi * 79e9 / 299_792_458.0  # the wavenumber at 79 GHz [rad/m]
 
 
 def _by_hand(p, n, area, eps):
-    """c = Gamma(theta) * ((1-w) max(0, m.o)^8 + w cos theta) * dA, written out for one sample."""
+    """c = (j k / 2 pi) Gamma(theta) * ((1-w) max(0, m.o)^8 + w cos theta) * dA, written out for one sample."""
     to_tx, to_rx = TX - p, RX - p
     cos_t = to_tx @ n / np.linalg.norm(to_tx)
     if cos_t <= 0 or to_rx @ n <= 0:
@@ -25,7 +26,7 @@ def _by_hand(p, n, area, eps):
     o = to_rx / np.linalg.norm(to_rx)
     lobe = (1 - DIFFUSE_WEIGHT) * max(0.0, m @ o) ** SPECULAR_EXPONENT + DIFFUSE_WEIGHT * cos_t
     gamma = complex(fresnel(math.acos(cos_t), eps, "mean"))
-    return gamma * lobe * area
+    return 1j * K / (2 * math.pi) * gamma * lobe * area
 
 
 def test_scatter_matches_a_hand_computation():
@@ -35,9 +36,9 @@ def test_scatter_matches_a_hand_computation():
     area = np.array([1e-6, 2e-6, 1.5e-6, 1e-6])
     eps = torch.tensor([6.3 - 0.3j, 2.0 - 0.1j, complex(math.inf), 6.3 - 0.3j], dtype=torch.complex128)
     c = scatter(torch.tensor(points), torch.tensor(normals), torch.tensor(area),
-                lambda cos: fresnel(torch.arccos(cos), eps, "mean"), torch.tensor(TX), torch.tensor(RX))
+                lambda cos: fresnel(torch.arccos(cos), eps, "mean"), torch.tensor(TX), torch.tensor(RX), K)
     expected = [_by_hand(p, n, a, complex(e)) for p, n, a, e in zip(points, normals, area, eps)]
-    np.testing.assert_allclose(c.numpy(), expected, rtol=1e-12, atol=1e-20)
+    np.testing.assert_allclose(c.numpy(), expected, rtol=1e-12, atol=1e-18)
     assert c[3] == 0 and c[2] != 0
 
 
@@ -48,7 +49,7 @@ def test_shadowed_samples_do_not_scatter_and_gradients_flow():
     lit = lit_mask(points, normals, torch.tensor(TX), torch.tensor(RX), occluder=blocker)
     assert lit.tolist() == [False, True]
     c = scatter(points, normals, torch.full((2,), 1e-6, dtype=torch.float64), lambda cos: torch.ones_like(cos),
-                torch.tensor(TX), torch.tensor(RX), occluder=blocker)
+                torch.tensor(TX), torch.tensor(RX), K, occluder=blocker)
     assert c[0] == 0 and c[1] != 0
     c.abs().sum().backward()
     assert torch.isfinite(points.grad).all() and points.grad[1].abs().sum() > 0
@@ -58,5 +59,5 @@ def test_scatter_rejects_nothing_silently_for_grazing_samples():
     grazing = torch.tensor([[0.0, 0.0, 0.0]], dtype=torch.float64)
     normal = torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64)  # perpendicular to the ray to the Tx
     c = scatter(grazing, normal, torch.ones(1, dtype=torch.float64), lambda cos: torch.ones_like(cos),
-                torch.tensor(TX), torch.tensor(RX))
+                torch.tensor(TX), torch.tensor(RX), K)
     assert c.item() == pytest.approx(0.0, abs=1e-12)

@@ -15,7 +15,7 @@ from .geometry.grid import Grid
 from .limits import require_memory
 from .progress import progress_bar
 
-__all__ = ["evaluate_on_grid", "extract_mesh", "export_mesh", "MESH_FORMATS"]
+__all__ = ["evaluate_on_grid", "extract_mesh", "extract_mesh_near_surface", "export_mesh", "MESH_FORMATS"]
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 _CHUNK_POINTS = 1 << 18  # 262k points per SDF call: bounded memory at any resolution
@@ -62,6 +62,54 @@ def mesh_from_volume(values: np.ndarray, grid: Grid, *, level: float = 0.0) -> t
     verts, faces, _, _ = measure.marching_cubes(values, level=level, spacing=tuple(grid.voxel_m))
     verts += np.asarray(grid.lower_m) + 0.5 * grid.voxel_m
     return trimesh.Trimesh(verts, faces, process=True)
+
+
+def _values(sdf, points: torch.Tensor, device=None) -> np.ndarray:
+    """sdf at points (N, 3) float64, chunked, no gradient: (N,) float64."""
+    with torch.no_grad():
+        return np.concatenate([sdf(chunk.to(device or "cpu")).double().cpu().numpy()
+                               for chunk in points.split(_CHUNK_POINTS)]) if len(points) else np.zeros(0)
+
+
+def extract_mesh_near_surface(
+    sdf: Callable[[torch.Tensor], torch.Tensor], lower_m, upper_m, voxel_m: float, *, block_voxels: int = 16,
+    device=None, progress: bool = False,
+) -> trimesh.Trimesh:
+    """Triangle mesh of the zero set of ``sdf`` in the box by marching cubes of cubic voxels
+    ``voxel_m`` [m], evaluated only in the blocks of ``block_voxels``^3 voxels the surface can
+    cross: |f(block centre)| within the block's half diagonal (f is a distance or a bound on
+    it, so no other block holds surface). A 2 cm plate 4 m across meshes at 5 mm voxels from
+    about 30,000 blocks where the dense grid would need 10^9 voxels. RuntimeError past the
+    memory limit; ValueError when no block holds surface.
+    """
+    lower, upper = np.asarray(lower_m, float), np.asarray(upper_m, float)
+    voxels = np.maximum(np.ceil((upper - lower) / voxel_m).astype(int), 1)
+    blocks = -(-voxels // block_voxels)
+    block_m = block_voxels * voxel_m
+    index = np.stack(np.meshgrid(*(np.arange(n) for n in blocks), indexing="ij"), -1).reshape(-1, 3)
+    centres = torch.as_tensor(lower + (index + 0.5) * block_m)
+    crossed = index[np.abs(_values(sdf, centres, device)) <= np.sqrt(3) / 2 * block_m + voxel_m]
+    if not len(crossed):
+        raise ValueError(f"no surface at level 0 inside the box {lower.tolist()} .. {upper.tolist()}")
+    corners = block_voxels + 1  # each block's voxel corners, its far faces shared with the next block's
+    require_memory(_MARCHING_BYTES_PER_VOXEL * len(crossed) * corners**3,
+                   f"marching cubes on {len(crossed)} blocks of {corners}^3 voxels ({voxel_m * 1e3:.3g} mm)")
+    offsets = np.stack(np.meshgrid(*(np.arange(corners),) * 3, indexing="ij"), -1).reshape(-1, 3) * voxel_m
+    parts = []
+    for start in progress_bar(range(0, len(crossed), 256), desc="mesh blocks", enabled=progress):
+        origins = lower + crossed[start:start + 256] * block_m  # (b, 3)
+        points = torch.as_tensor((origins[:, None, :] + offsets[None]).reshape(-1, 3))
+        values = _values(sdf, points, device).reshape(len(origins), corners, corners, corners)
+        for origin, block in zip(origins, values):
+            if block.min() < 0 < block.max():
+                verts, faces, _, _ = measure.marching_cubes(block, level=0.0, spacing=(voxel_m,) * 3)
+                parts.append(trimesh.Trimesh(verts + origin, faces, process=False))
+    if not parts:
+        raise ValueError(f"no surface at level 0 inside the box {lower.tolist()} .. {upper.tolist()} "
+                         f"at {voxel_m * 1e3:.3g} mm voxels")
+    mesh = trimesh.util.concatenate(parts)
+    mesh.merge_vertices()  # the blocks' shared faces
+    return mesh
 
 
 def export_mesh(mesh: trimesh.Trimesh, path) -> Path:

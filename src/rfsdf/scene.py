@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -19,7 +20,7 @@ from .errors import RfsdfError
 from .geometry.differential import gradient
 from .geometry.surface_sampling import stratified_surface_points
 from .materials import Material
-from .mesh import extract_mesh
+from .mesh import extract_mesh, extract_mesh_near_surface
 from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
 
@@ -28,6 +29,9 @@ __all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_preset
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
 _COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
 _CHECK_RESOLUTION = 24  # grid on which every object must come near the bounds at load time
+_CELLS_ACROSS = 3  # marching-cubes cells across an object's thinnest part, at least
+_MAX_SPLITS = 12  # rounds of splitting triangles in four (4096 x smaller edges at most)
+_THIN_QUANTILE = 0.1  # of the depths below an object's surface points: its thinnest part's half thickness
 _NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
 
 
@@ -53,17 +57,28 @@ class SurfaceSamples:
     """Points on the scene surface (N samples).
 
     points : (N, 3) float32 [m]; normals : (N, 3) outward unit; area_m2 : (N,) area each
-    sample stands for [m^2]; object_index : (N,) int64 into ``Scene.objects``.
+    sample stands for [m^2]; object_index : (N,) int64 into ``Scene.objects``; corners_m :
+    (N, 3, 3) float64 [m] when each sample is a flat triangle (``radar/facets.py``), its
+    corners relative to the point, its centroid; None for points.
     """
 
     points: torch.Tensor
     normals: torch.Tensor
     area_m2: torch.Tensor
     object_index: torch.Tensor
+    corners_m: torch.Tensor | None = None
+
+    def _map(self, op) -> SurfaceSamples:
+        return SurfaceSamples(*(None if t is None else op(t) for t in (
+            self.points, self.normals, self.area_m2, self.object_index, self.corners_m)))
 
     def to(self, device) -> SurfaceSamples:
         """The same samples on ``device``."""
-        return SurfaceSamples(*(t.to(device) for t in (self.points, self.normals, self.area_m2, self.object_index)))
+        return self._map(lambda t: t.to(device))
+
+    def select(self, keep: torch.Tensor) -> SurfaceSamples:
+        """The samples where ``keep`` (N,) bool is true."""
+        return self._map(lambda t: t[keep.to(t.device)])
 
 
 def _vec(v) -> torch.Tensor:
@@ -201,11 +216,23 @@ class Scene:
             return pts[obj.sdf(pts) < np.linalg.norm(coarse.voxel_m)]
 
     def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
+        """Marching cubes of an analytic object: ``_MESH_RESOLUTION`` cells along its longest
+        edge, or, where its thinnest part is thinner than ``_CELLS_ACROSS`` such cells (a
+        plasterboard sheet, a window pane in a room), cells that fit that many times across
+        it, evaluated near its surface only (:func:`~rfsdf.mesh.extract_mesh_near_surface`)."""
         near, pad = self._near_points(obj, _COARSE_RESOLUTION), 2 * self._coarse_grid(_COARSE_RESOLUTION).voxel_m
         lower = np.maximum(near.min(0).values.numpy() - pad, self.lower_m - pad)
         upper = np.minimum(near.max(0).values.numpy() + pad, self.upper_m + pad)
         sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface
-        return extract_mesh(sdf64, lower, upper, _MESH_RESOLUTION)
+        longest = float((upper - lower).max())
+        thickness = 2 * _half_thickness(obj.sdf, near)
+        if thickness >= _CELLS_ACROSS * longest / _MESH_RESOLUTION:
+            return extract_mesh(sdf64, lower, upper, _MESH_RESOLUTION)
+        try:
+            return extract_mesh_near_surface(sdf64, lower, upper, thickness / _CELLS_ACROSS)
+        except (ValueError, RuntimeError) as exc:
+            raise RfsdfError(f"scene {self.name!r}: object {obj.name!r}: {thickness * 1e3:.3g} mm thick at its "
+                             f"thinnest and {longest:.3g} m long: cannot mesh it ({exc})") from None
 
     def ground_truth_mesh(self) -> trimesh.Trimesh:
         """All object meshes in one (objects are expected not to overlap)."""
@@ -251,6 +278,37 @@ class Scene:
             object_index=torch.cat([torch.full((len(p),), i) for p, _, _, i in parts])[keep],
         )
 
+    def surface_facets(self, max_edge_m: Callable[[np.ndarray], np.ndarray]) -> SurfaceSamples:
+        """Every object's surface as flat triangles, each a sample at its centroid with its
+        corners (``SurfaceSamples.corners_m``), face normal and area: the objects' meshes
+        (:meth:`object_meshes`), their triangles split in four until each one's longest
+        edge is within ``max_edge_m(centroids (F, 3)) -> (F,)`` [m] at its centroid.
+        Triangles whose centroid is buried in another object are dropped."""
+        parts = []
+        for index, mesh in enumerate(self.object_meshes()):
+            vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+            for _ in range(_MAX_SPLITS):
+                triangles = vertices[faces]
+                longest = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(1)
+                too_big = np.flatnonzero(longest > max_edge_m(triangles.mean(1)))
+                if not len(too_big):
+                    break
+                vertices, faces = trimesh.remesh.subdivide(vertices, faces, face_index=too_big)
+            triangles = torch.as_tensor(vertices[faces], dtype=torch.float64)  # (F, 3, 3)
+            centroids = triangles.mean(1)
+            cross = torch.linalg.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+            area = 0.5 * cross.norm(dim=1)
+            keep = area > 0
+            parts.append((centroids[keep], cross[keep] / (2 * area[keep, None]), area[keep],
+                          torch.full((int(keep.sum()),), index), triangles[keep] - centroids[keep, None]))
+        samples = SurfaceSamples(*(torch.cat(t) for t in zip(*parts)))
+        if len(self.objects) > 1:
+            with torch.no_grad():
+                edges = samples.corners_m.norm(dim=2).max(1).values
+                samples = samples.select(self.sdf(samples.points) > -0.25 * edges)
+        return SurfaceSamples(samples.points.float(), samples.normals.float(), samples.area_m2.float(),
+                              samples.object_index, samples.corners_m)
+
     def sample_spacing(self, spacing_m: float, max_samples: int | None = None) -> float:
         """The spacing [m] :meth:`sample_surface` uses: ``spacing_m``, or wider where the
         surface would otherwise take more than ``max_samples`` samples."""
@@ -286,6 +344,33 @@ class Scene:
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
                          f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}")
         return "\n".join(lines)
+
+
+def _half_thickness(sdf, near: torch.Tensor) -> float:
+    """Half the thickness [m] of a solid at its thinnest: from points ``near`` (M, 3) [m] its
+    surface, projected onto it by Newton steps, the deepest that -f gets along -grad f
+    taken where the point was (a slab 2h thick: h; a point beside an edge projects onto
+    the edge, where the gradient is undefined), its ``_THIN_QUANTILE`` quantile over the
+    points (inf without points): near a rim every ray meets a side face soon, so the least
+    would call a 10 cm slab 1 cm thick (measured), while a thin part of an object covers
+    more than that share of its surface."""
+    if not len(near):
+        return float("inf")
+    # jittered off the grid they came from: a face in a grid plane (common in designed
+    # scenes) would send the rays from its rim along itself
+    spacing = float((near.max(0).values - near.min(0).values).max()) / _COARSE_RESOLUTION
+    jitter = torch.rand(near.shape, generator=torch.Generator().manual_seed(0), dtype=torch.float64) - 0.5
+    p = near.double() + 0.5 * spacing * jitter
+    inward = -torch.nn.functional.normalize(gradient(sdf, p), dim=1)
+    for _ in range(_NEWTON_STEPS):
+        g = gradient(sdf, p)
+        p = p - (sdf(p) / (g * g).sum(1).clamp(min=1e-12))[:, None] * g
+    extent = float((near.max(0).values - near.min(0).values).max())
+    depths = torch.logspace(-5, np.log10(max(extent, 2e-5)), 48, dtype=torch.float64)
+    with torch.no_grad():
+        deepest = torch.stack([-sdf(p + t * inward) for t in depths]).max(0).values
+    on_surface = deepest > 0  # a point Newton left off the surface sees no inside
+    return float(torch.quantile(deepest[on_surface], _THIN_QUANTILE)) if bool(on_surface.any()) else float("inf")
 
 
 def load_scene(name_or_path) -> Scene:

@@ -7,6 +7,8 @@ Rx j at frequency k in view v. Positions are in the scene frame, already placed 
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import torch
@@ -73,6 +75,11 @@ class Acquisition:
     def wavelength_m(self) -> float:
         """Wavelength at the centre frequency [m]."""
         return SPEED_OF_LIGHT / self.center_frequency_hz
+
+    @property
+    def wavenumber_rad_m(self) -> float:
+        """k = 2 pi / lambda at the centre frequency [rad/m]."""
+        return 2 * math.pi / self.wavelength_m
 
     def view(self, index: int | slice) -> Acquisition:
         """The acquisition restricted to some views."""

@@ -145,6 +145,17 @@ class SensingOperator:
         c = c.to(_complex_dtype(points.dtype)).expand(v_total, -1)
         return _ApplyA.apply(points, c, self, progress)
 
+    def forward_weighted(self, points: torch.Tensor, c: torch.Tensor,
+                         weight: Callable[[slice, slice], torch.Tensor], *, progress: bool = False) -> torch.Tensor:
+        """y = A (c w): :meth:`forward` with per-view c (V, Q), each point's c times a weight
+        per view and frequency that ``weight(views, points)`` returns for a chunk, (v, K, q)
+        complex (a facet's phase integral, ``radar/facets.py``), so that the (V, K, Q)
+        weights never exist at once. Not differentiable."""
+        points = as_points(points)
+        if tuple(c.shape) != (self.acq.shape[0], points.shape[0]):
+            raise ValueError(f"c must have shape (V, Q) = ({self.acq.shape[0]}, {points.shape[0]}), got {tuple(c.shape)}")
+        return self._apply(points.detach(), c.detach().to(_complex_dtype(points.dtype)), progress, weight)
+
     def adjoint(self, y: torch.Tensor, points: torch.Tensor, *, per_view: bool = False, progress: bool = False) -> torch.Tensor:
         """x = A^H y at ``points`` (Q, 3): (Q,) complex, or (V, Q) with ``per_view``.
 
@@ -193,12 +204,16 @@ class SensingOperator:
 
     # The passes behind forward/adjoint and their gradients -------------------------------
     @torch.no_grad()
-    def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False) -> torch.Tensor:
-        """A c for per-view c (V, Q): (V, T, R, K)."""
+    def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False,
+               weight: Callable[[slice, slice], torch.Tensor] | None = None) -> torch.Tensor:
+        """A c for per-view c (V, Q), times ``weight`` (see forward_weighted): (V, T, R, K)."""
         blocks: dict[int, list[torch.Tensor]] = {}
         for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A c", enabled=progress):
             u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
-            y = torch.matmul(u * c[views, None, None, pts], w.transpose(-1, -2))  # (v, K, T, R)
+            cw = c[views, None, None, pts]
+            if weight is not None:
+                cw = cw * weight(views, pts)[:, :, None, :].to(cw.dtype)
+            y = torch.matmul(u * cw, w.transpose(-1, -2))  # (v, K, T, R)
             blocks.setdefault(views.start, []).append(y)
         y = torch.cat([sum(parts) for _, parts in sorted(blocks.items())], dim=0)
         return y.permute(0, 2, 3, 1).contiguous()

@@ -5,11 +5,20 @@ material) and the reconstruction's coherent renderer (samples of the neural surf
 learned reflectivity). A sample at p with outward normal n and area dA, lit from the Tx
 phase centre s and seen from the Rx phase centre r, scatters with
 
-    c = Gamma(cos theta_inc) * L * dA * lit,
+    c = (j k / 2 pi) * Gamma(cos theta_inc) * L * dA * lit,
     L = (1 - w_d) max(0, m . o)^n_s + w_d max(0, cos theta_inc),
 
 theta_inc the angle between n and the direction to s, m the mirror image of the incident
 direction, o the unit vector to r, w_d the diffuse weight and n_s the specular exponent.
+j k / 2 pi is physical optics' factor, evaluated at the centre frequency here and scaled to
+each frequency k_f by ``po_spectrum`` on the data (a per-frequency constant, so it factors
+out of the sum over samples): with it a sample's c is
+sqrt(sigma / 4 pi) of its radar cross-section sigma (a flat plate of area A at normal
+incidence, sigma = 4 pi A^2 / lambda^2: c = A / lambda), so the sensing operator's
+1 / (d_tx d_rx) puts the data in the units of the field, and a large flat wall d away
+returns Gamma / (2 d) from range d, the image source's value (tests/test_rooms.py).
+A sample that stands for a flat triangle (``radar/facets.py``) takes the integral of the
+phase across it in the sensing operator, per frequency; c is the same.
 ``lit`` is 0 for samples facing away from s or r and for samples whose ray to the array's
 phase centre meets the scene first (sphere tracing against an occluder SDF).
 """
@@ -22,7 +31,7 @@ import torch
 
 from ..geometry import sphere_trace
 
-__all__ = ["scatter", "lit_mask", "SPECULAR_EXPONENT", "DIFFUSE_WEIGHT"]
+__all__ = ["scatter", "lit_mask", "po_spectrum", "SPECULAR_EXPONENT", "DIFFUSE_WEIGHT"]
 
 SPECULAR_EXPONENT = 8.0  # n_s of the lobe
 DIFFUSE_WEIGHT = 0.5  # w_d of the lobe
@@ -57,17 +66,26 @@ def lit_mask(points: torch.Tensor, normals: torch.Tensor, tx_centre_m: torch.Ten
         return lit
 
 
+def po_spectrum(frequencies_hz: torch.Tensor) -> torch.Tensor:
+    """(K,) physical optics' j k / 2 pi at each frequency over its value at the centre
+    frequency (their mean, ``Acquisition.center_frequency_hz``), where :func:`scatter`
+    takes it: the data y (..., K) of ``scatter``'s c are multiplied by it."""
+    f = frequencies_hz.double()
+    return f / f.mean()
+
+
 def scatter(points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor, reflection: Reflection,
-            tx_centre_m: torch.Tensor, rx_centre_m: torch.Tensor, *, specular_exponent: float = SPECULAR_EXPONENT,
-            diffuse_weight: float = DIFFUSE_WEIGHT, occluder: Callable[[torch.Tensor], torch.Tensor] | None = None,
-            ) -> torch.Tensor:
+            tx_centre_m: torch.Tensor, rx_centre_m: torch.Tensor, wavenumber_rad_m: float, *,
+            specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT,
+            occluder: Callable[[torch.Tensor], torch.Tensor] | None = None) -> torch.Tensor:
     """Complex reflectivity c (Q,) of surface samples in one view (see the module docstring).
 
     points, normals : (Q, 3) [m] and outward unit normals, scene frame. area_m2 : (Q,) [m^2].
     reflection : cos(theta_inc) (Q,) -> Gamma (Q,), e.g. the Fresnel coefficient of each
     sample's material, or a learned non-negative amplitude. tx_centre_m, rx_centre_m : (3,)
-    [m]. occluder : scene SDF for shadows (None: facing only). Differentiable in points,
-    normals, area and whatever ``reflection`` returns; dtype follows ``points``.
+    [m]. wavenumber_rad_m : k = 2 pi f / c at the centre frequency. occluder : scene SDF
+    for shadows (None: facing only). Differentiable in points, normals, area and whatever
+    ``reflection`` returns; dtype follows ``points``.
     """
     to_tx, to_rx = _directions(points, tx_centre_m, rx_centre_m)
     dist_tx = to_tx.norm(dim=1)
@@ -77,4 +95,4 @@ def scatter(points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor, 
     cos_spec = (mirror * torch.nn.functional.normalize(to_rx, dim=1)).sum(1)
     lobe = (1 - diffuse_weight) * cos_spec.clamp(min=0) ** specular_exponent + diffuse_weight * cos_inc.clamp(min=0)
     lit = lit_mask(points, normals, tx_centre_m, rx_centre_m, occluder=occluder)
-    return reflection(cos_inc.clamp(0, 1)) * (lobe * area_m2 * lit)
+    return 1j * reflection(cos_inc.clamp(0, 1)) * (lobe * area_m2 * lit * (wavenumber_rad_m / (2 * torch.pi)))

@@ -16,9 +16,11 @@ import torch
 from ..materials import fresnel
 from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
-from .acquisition import Acquisition, Measurements
+from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from .operator import SensingOperator
-from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, scatter
+from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, po_spectrum, scatter
+from .facets import facet_weight
+from .surface_plan import surface_samples
 from .system import Radar
 
 __all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH",
@@ -53,8 +55,9 @@ def surface_reflectivity(
     sample_eps = eps[object_index]
     c = scatter(points.double(), normals.double(), area_m2.double(),
                 lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization),
-                tx_centre.double(), rx_centre.double(), specular_exponent=specular_exponent,
-                diffuse_weight=diffuse_weight, occluder=scene.sdf if shadows else None)
+                tx_centre.double(), rx_centre.double(), 2 * np.pi * frequency_hz / SPEED_OF_LIGHT,
+                specular_exponent=specular_exponent, diffuse_weight=diffuse_weight,
+                occluder=scene.sdf if shadows else None)
     return c.to(torch.complex64)
 
 
@@ -99,8 +102,10 @@ def simulate(
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
     The surface is sampled ``lambda / samples_per_wavelength`` apart (``spacing_m``
-    overrides; at most ``max_samples`` samples; rough objects need at most half their
-    correlation length, else ValueError); ``stratified`` places them one per stratum of
+    overrides) when that takes at most ``max_samples`` samples; else as flat facets over
+    the surface some view sees, no coarser than the physics allows, or ValueError
+    (:mod:`~rfsdf.radar.surface_plan`; its summary is the metadata's "surface_sampling"). Rough objects need samples at most half their correlation length apart,
+    else ValueError. ``stratified`` places them one per stratum of
     equal area (:meth:`~rfsdf.scene.Scene.sample_surface`; the default), which cuts the
     quadrature's random error on faces turned away from the radar (study ``roughness``). Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
@@ -108,15 +113,23 @@ def simulate(
     float rounding.
     """
     acq = radar.acquisition()
-    spacing = scene.sample_spacing(spacing_m or acq.wavelength_m / samples_per_wavelength, max_samples)
-    _require_resolved_roughness(scene, spacing)
-    samples = scene.sample_surface(spacing, seed=seed, stratified=stratified).to(device or "cpu")
+    samples, plan = surface_samples(scene, acq, spacing_m or acq.wavelength_m / samples_per_wavelength, max_samples,
+                                    seed=seed, stratified=stratified)
+    _require_resolved_roughness(scene, plan.facet_edge_m if plan.facets else plan.spacing_m)
+    samples = samples.to(device or "cpu")
     c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
                             diffuse_weight=diffuse_weight, polarization=polarization, shadows=shadows)
-    y = SensingOperator(acq).forward(scene.rough_points(samples), c, progress=progress).cpu()
+    operator = SensingOperator(acq)
+    if samples.corners_m is None:
+        y = operator.forward(scene.rough_points(samples), c, progress=progress).cpu()
+    else:
+        y = operator.forward_weighted(scene.rough_points(samples), c,
+                                      facet_weight(acq, samples.points, samples.corners_m), progress=progress).cpu()
+    y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:
         y, noise_std = add_noise(y, radar.snr_db, torch.Generator().manual_seed(seed + 1))
     bounds = ",".join(f"{v:.9g}" for v in (*scene.lower_m, *scene.upper_m))
     return Measurements(acq, y, noise_std, {"scene": scene.name, "radar": radar.name, "bounds_m": bounds,
-                                            "surface_samples": str(len(samples.points))})
+                                            "surface_samples": str(len(samples.points)),
+                                            "surface_sampling": plan.summary(len(samples.points))})

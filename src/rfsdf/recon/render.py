@@ -43,7 +43,7 @@ from ..materials import get_material, mixture_fresnel
 from ..progress import progress_bar
 from ..radar import Measurements, SensingOperator
 from ..radar.imaging import require_image_memory
-from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, scatter
+from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, po_spectrum, scatter
 from ..registry import Registry
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
 
@@ -89,6 +89,8 @@ class CoherentRenderer:
         self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
         self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
         self.centre_frequency_hz = acq.center_frequency_hz
+        self.wavenumber_rad_m = acq.wavenumber_rad_m
+        self.po_spectrum = po_spectrum(acq.frequencies_hz).to(self.device)  # (K,), the data's last axis
         self.candidates: SurfaceCandidates | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
@@ -123,8 +125,9 @@ class CoherentRenderer:
         """y_v = A_v c_v (1, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
         c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there). The
         simulator's data, for the simulator's samples and their Fresnel reflection."""
-        c = scatter(points, normals, area_m2, reflection, self.tx_centres[view], self.rx_centres[view], **self.lobe)
-        return self.operators[view].forward(points, c[None])
+        c = scatter(points, normals, area_m2, reflection, self.tx_centres[view], self.rx_centres[view],
+                    self.wavenumber_rad_m, **self.lobe)
+        return self.operators[view].forward(points, c[None]) * self.po_spectrum.to(c.dtype)
 
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
         """(K,) complex128 relative permittivities of catalogue materials at the data's centre
