@@ -350,3 +350,32 @@ def test_material_inputs_are_one_line(tmp_path, tiny_files):
         "objects": [estimate], "components": [], "accuracy": None, "min_observed_fraction": 0.15, "calibration": ""}}))
     line = _refused(["materials", demo], tmp_path)
     assert "metrics.json: materials: objects[0].observed_fraction: Input should be a valid number" in line, line
+
+
+def test_a_calibration_reference_is_checked_before_any_work(tmp_path, tiny_files):
+    """A reference that is not NAME=MATERIAL, whose material is no class of the head, with no
+    scene to place it, naming no object of the scene, or an object no view observes: one
+    error line naming the file or option and the field, exit 2, nothing written."""
+    data, run = tmp_path / "data.h5", tmp_path / "run"
+    config = tmp_path / "cal.toml"
+    config.write_text('[calibration]\nreference = "ball"\n')
+    line = _refused(["reconstruct", data, "--out", run, "--config", config], tmp_path)
+    assert f"{config}: calibration.reference: expected NAME=MATERIAL" in line, line
+    line = _refused(["reconstruct", data, "--out", run, "--reference", "ball=wood", "--config", config], tmp_path)
+    assert "calibration.reference: expected NAME=MATERIAL" in line, line  # the file is read first
+    config.write_text('[field]\nmaterials = ["glass", "wood"]\n')
+    line = _refused(["reconstruct", data, "--out", run, "--config", config, "--reference", "ball=metal"], tmp_path)
+    assert "--reference" in line and "calibration.reference: 'metal' is not one of field.materials" in line, line
+    line = _refused(["reconstruct", data, "--out", run, "--reference", "ball=metal"], tmp_path)
+    assert "needs --scene" in line, line
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        'name = "hidden"\n[bounds]\nlower_m = [-0.05, -0.05, -0.05]\nupper_m = [0.05, 0.05, 0.05]\n'
+        '[[objects]]\nname = "shell"\nmaterial = "wood"\nshape = { type = "sphere", radius_m = 0.03 }\n'
+        '[[objects]]\nname = "core"\nmaterial = "metal"\nshape = { type = "sphere", radius_m = 0.01 }\n')
+    line = _refused(["reconstruct", data, "--out", run, "--reference", "ball=metal", "--scene", scene], tmp_path)
+    assert "calibration.reference ball=metal: scene 'hidden' has no object 'ball' (it has shell, core)" in line, line
+    line = _refused(["reconstruct", data, "--out", run, "--reference", "core=metal", "--scene", scene], tmp_path)
+    assert "object 'core' is observed by no view" in line, line  # inside the wooden shell
+    line = _refused(["demo", "--quick", "--out", run, "--no-materials", "--reference", "metal_ball=metal"], tmp_path)
+    assert "calibration.reference: 'metal' is not one of field.materials []" in line, line

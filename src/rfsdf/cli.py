@@ -113,7 +113,7 @@ def scene_show(name_or_file: str, out: Path | None):
     click.echo(f"wrote {out}")
 
 
-def _simulate(scene_name: str, radar_name: str, seed: int, device):
+def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: int = 150_000):
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from .scene import load_scene
 
@@ -122,7 +122,9 @@ def _simulate(scene_name: str, radar_name: str, seed: int, device):
     check_materials_in_band(sc, rad, source=scene_name)
     click.echo(sc.summary())
     click.echo(rad.summary())
-    return sc, simulate(sc, rad, seed=seed, device=device, progress=True)
+    measurements = simulate(sc, rad, seed=seed, device=device, max_samples=max_samples, progress=True)
+    click.echo(measurements.metadata["surface_sampling"])
+    return sc, measurements
 
 
 def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path, method: str, device):
@@ -181,10 +183,13 @@ _RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADD
 @click.option("--workers", type=click.IntRange(1, 1024), default=1, show_default=True,
               help="With --random: scenes at once in a local process pool.")
 @click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
+@click.option("--max-samples", type=click.IntRange(1, 10**8), default=150_000, show_default=True,
+              help="Most surface samples: points lambda/3 apart when they fit, else facets sized to their range "
+                   "(a room), else refused with the count it needs.")
 @_device_option()
 @_one_line_errors
 def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,
-                 workers: int, ray_address: str | None, device: str):
+                 workers: int, ray_address: str | None, max_samples: int, device: str):
     """Simulate radar measurements of a scene and write them to an HDF5 file, or (--random N)
     a dataset of N random scenes: OUT/scene-NNNNN.toml + .h5 and OUT/dataset.json."""
     if (scene_name is None) == (random_count is None):
@@ -204,7 +209,7 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
     from .radar import write_measurements
 
     _refuse_overwriting_inputs(out, scene_name, radar_name)
-    _, measurements = _simulate(scene_name, radar_name, seed, _device(device))
+    _, measurements = _simulate(scene_name, radar_name, seed, _device(device), max_samples)
     write_measurements(out, measurements)
     click.echo(f"wrote {out}")
 
@@ -281,13 +286,21 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] of the fit's images (default: extent / 50).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None, help="Reconstruction TOML.")
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint.")
+@click.option("--reference", default=None, metavar="NAME=MATERIAL",
+              help="Calibrate the gain with object NAME of --scene, known to be MATERIAL (overrides the config's "
+                   "calibration.reference).")
+@click.option("--scene", "scene_name", default=None,
+              help="Scene file or preset that places the calibration reference (only that object is used).")
 @_device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
-                    config_path: Path | None, resume: bool, device: str | None):
+                    config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
+                    device: str | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply.
 
-    No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA."""
+    No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA.
+    A calibration reference (--reference, or calibration.reference in --config) needs the
+    --scene that places it; its result goes to calibration.json."""
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -298,9 +311,20 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
     if device is not None:
         config = config.on_device(_device(device))
+    if reference is not None:
+        config = _with_reference(config, reference, config_path)
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
+    calibrator = None
+    if config.calibration.reference is not None:
+        if scene_name is None:
+            raise click.UsageError("a calibration reference needs --scene, the scene file that places it")
+        from .material_estimates import scene_reference
+        from .scene import load_scene
+
+        calibrator = scene_reference(load_scene(scene_name), config.calibration, measurements.acquisition,
+                                     source=f"{scene_name}: calibration.reference {config.calibration.reference}")
     if image_path is not None:
         image = read_image(image_path)
         if image.per_view.shape[0] != measurements.acquisition.shape[0]:
@@ -310,10 +334,32 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     else:
         lower, upper = _image_box(data, measurements, bounds, None)
         grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
-    trainer = Trainer(Problem(measurements, grid, str(data)), config, out, progress=True)
+    known = None if calibrator is None else calibrator.labels(tuple(config.field.materials))
+    trainer = Trainer(Problem(measurements, grid, str(data), known_materials=known), config, out, progress=True)
     fit = trainer.fit(resume=resume)
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
+    if calibrator is not None:
+        from .atomic import atomic_path
+        from .jsonio import to_json
+        from .recon.calibration import CALIBRATION_NAME, check_reference
+
+        calibration = check_reference(trainer, calibrator)
+        with atomic_path(out / CALIBRATION_NAME) as tmp:
+            tmp.write_text(to_json(calibration.as_dict()))
+        click.echo(calibration.text())
+        if calibration.warning() is not None:
+            click.echo(f"warning: {calibration.warning()}", err=True)
+
+
+def _with_reference(config, reference: str, config_path: Path | None):
+    """``config`` with calibration.reference set, checked as if the file had said it."""
+    from .config import validate
+    from .recon.config import ReconConfig
+
+    merged = config.model_dump()
+    merged["calibration"]["reference"] = reference
+    return validate(ReconConfig, merged, "--reference" if config_path is None else f"{config_path} with --reference")
 
 
 def _run_config(run: Path) -> Path | None:
@@ -373,9 +419,12 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
 @click.option("--no-materials", is_flag=True,
               help="Fit a free reflectivity instead of the material head (no material estimates).")
+@click.option("--reference", default=None, metavar="NAME=MATERIAL",
+              help="Calibrate the gain with the scene's object NAME, known to be MATERIAL (e.g. metal_ball=metal).")
 @_device_option()
 @_one_line_errors
-def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, device: str):
+def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
+         device: str):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
@@ -390,6 +439,9 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
     if no_materials:
         settings = dataclasses.replace(settings, recon=merge_tables(settings.recon, {"field": {"materials": []}}))
+    if reference is not None:
+        settings = dataclasses.replace(settings, recon=merge_tables(settings.recon,
+                                                                    {"calibration": {"reference": reference}}))
     from .report import write_report
 
     result = run_demo(out, settings, device=device, log=click.echo)

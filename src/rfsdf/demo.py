@@ -41,7 +41,9 @@ from .device import resolve_device
 from .errors import RfsdfError
 from .geometry import Grid
 from .jsonio import to_json
-from .material_estimates import MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh
+from .material_estimates import (
+    MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, scene_reference,
+)
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
@@ -52,6 +54,7 @@ from .radar.clean import clean_image
 from .radar.coverage import observed_mask
 from .radar.simulate import SAMPLES_PER_WAVELENGTH, SIMULATED_GAIN
 from .recon import Problem, ReconConfig, Trainer
+from .recon.calibration import check_reference
 from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
@@ -81,7 +84,8 @@ class DemoSettings:
 
 
 QUICK = DemoSettings(
-    voxel_m=0.015, max_surface_samples=20_000, mesh_resolution=40, metric_samples=5_000,
+    # points lambda/1.5 apart (16,000 on the default scene): coarse on purpose, it is a smoke test
+    voxel_m=0.015, max_surface_samples=20_000, samples_per_wavelength=1.5, mesh_resolution=40, metric_samples=5_000,
     recon={"field": {"width": 48, "depth": 4},
            "init": {"steps": 40, "batch": 2048},
            "render": {"element_step": 4, "spacing_m": 0.004, "refresh_every": 3},
@@ -222,10 +226,15 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
 
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
         f"({config.init.steps} steps) + {config.train.steps} steps")
+    reference = None
+    if config.calibration.reference is not None:
+        reference = scene_reference(scene, config.calibration, measurements.acquisition)
     problem = Problem(measurements, grid, str(out / "measurements.h5"),
                       clean=clean if config.init.method == "clean" else None,
-                      gain=SIMULATED_GAIN if settings.known_gain else None)
-    fit = Trainer(problem, config, out / "run", progress=progress).fit(resume=True)
+                      gain=SIMULATED_GAIN if settings.known_gain else None,
+                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
+    trainer = Trainer(problem, config, out / "run", progress=progress)
+    fit = trainer.fit(resume=True)
     lap("fit_s")
 
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
@@ -241,8 +250,12 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     lap("mesh_and_evaluate_s")
     materials = None
     if has_head:
+        calibration = None if reference is None else check_reference(trainer, reference)
+        if calibration is not None and calibration.warning() is not None:
+            log(f"warning: {calibration.warning()}")
         materials = estimate_materials(fit.field, neural, measurements.acquisition, scene=scene, seed=settings.seed,
-                                       calibration=calibration_text(problem.gain))
+                                       calibration=calibration_text(problem.gain, calibration),
+                                       reference=config.calibration.reference_object)
         lap("materials_s")
 
     reference = scene.ground_truth_mesh()

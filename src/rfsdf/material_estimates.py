@@ -14,7 +14,7 @@ the accuracy: what no view sees, no data can tell.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import pydantic
@@ -28,7 +28,7 @@ from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
            "object_materials", "component_materials", "class_accuracy", "point_eps_real", "paint_mesh",
-           "check_materials_dict", "calibration_text", "materials_table", "run_materials"]
+           "check_materials_dict", "calibration_text", "scene_reference", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 _CHUNK = 1 << 15
@@ -51,6 +51,7 @@ class MaterialEstimate:
     observed_fraction: float
     true: str | None = None
     true_eps_real: float | None = None
+    reference: bool = False  # the calibration reference: rendered as its stated material, not counted
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -153,15 +154,18 @@ def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, 
 
 def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
     """Share of the objects observed at least ``MIN_OBSERVED_FRACTION`` whose predicted class
-    is their true material (None when no object is observed enough)."""
-    counted = [o for o in objects if o.observed_fraction >= MIN_OBSERVED_FRACTION]
+    is their true material (None when no object is observed enough); a calibration
+    reference, whose material was given, does not count."""
+    counted = [o for o in objects if o.observed_fraction >= MIN_OBSERVED_FRACTION and not o.reference]
     return None if not counted else sum(o.predicted == o.true for o in counted) / len(counted)
 
 
 def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *, scene=None,
-                       calibration: str, seed: int = 0) -> MaterialReport:
-    """The full report: per object (with a scene), per component, the accuracy."""
+                       calibration: str, reference: str | None = None, seed: int = 0) -> MaterialReport:
+    """The full report: per object (with a scene; the object named ``reference`` marked as
+    the calibration's), per component, the accuracy."""
     objects = [] if scene is None else object_materials(field, scene, acquisition, seed=seed)
+    objects = [replace(o, reference=o.name == reference) for o in objects]
     return MaterialReport(objects, component_materials(field, mesh, acquisition, seed=seed), class_accuracy(objects),
                           calibration)
 
@@ -200,8 +204,40 @@ def check_materials_dict(materials, source: str) -> dict:
     return materials
 
 
-def calibration_text(gain: float | None) -> str:
-    """How a fit's amplitudes were calibrated, in words, from its Problem.gain."""
+def scene_reference(scene, calibration, acquisition: Acquisition, *, source: str = "calibration.reference",
+                    spacing_m: float = 0.002, max_samples: int = 40_000):
+    """The :class:`~rfsdf.recon.calibration.Reference` that ``calibration`` (a
+    CalibrationConfig with a reference) names in ``scene``; RfsdfError naming ``source`` when
+    the scene has no such object or no view of ``acquisition`` observes any of its surface
+    (a reference the data do not see calibrates nothing; a sphere's glint, a few per cent of
+    its surface, is enough)."""
+    from .errors import RfsdfError
+    from .recon.calibration import Reference
+
+    name = calibration.reference_object
+    names = [o.name for o in scene.objects]
+    if name not in names:
+        raise RfsdfError(f"{source}: scene {scene.name!r} has no object {name!r} (it has {', '.join(names)})")
+    index = names.index(name)
+    samples = scene.sample_surface(spacing_m, seed=0, max_samples=max_samples, stratified=True)
+    mine = samples.object_index == index
+    seen = mine & observed_mask(samples.points, samples.normals, acquisition, scene.sdf)
+    fraction = float(samples.area_m2[seen].sum() / samples.area_m2[mine].sum()) if bool(mine.any()) else 0.0
+    if fraction == 0:
+        raise RfsdfError(f"{source}: object {name!r} is observed by no view (it faces away from every view, "
+                         "or another object shadows it): it cannot calibrate")
+    others = [o.sdf for i, o in enumerate(scene.objects) if i != index]
+    rest = None if not others else (lambda p: torch.stack([sdf(p) for sdf in others]).min(0).values)
+    return Reference(name, calibration.reference_material, scene.objects[index].sdf, rest,
+                     calibration.reference_distance_m)
+
+
+def calibration_text(gain: float | None, reference=None) -> str:
+    """How a fit's amplitudes were calibrated, in words, from its Problem.gain and, when a
+    reference object calibrated it, its :class:`~rfsdf.recon.calibration.Calibration`."""
+    if reference is not None:
+        warning = reference.warning()
+        return reference.text() + ("" if warning is None else f". WARNING: {warning}")
     if gain is None:
         return "relative: one gain fitted at each step, so only the ratios of the surfaces' |Gamma| are data"
     return f"known radar gain {gain:g}"
@@ -214,6 +250,8 @@ def materials_table(materials: dict) -> str:
         eps = "-" if e["eps_real"] is None else f"{e['eps_real']:.2f} [{e['eps_real_interval'][0]:.2f}, " \
                                               f"{e['eps_real_interval'][1]:.2f}]"
         truth = "" if e.get("true") is None else f"{e['true']:<13}"
+        if e.get("reference"):
+            return f"  {e['name']:<26}{truth}(the calibration reference, rendered as stated)"
         best = max(e["probabilities"].values())
         return f"  {e['name']:<26}{truth}{e['predicted']:<13}{best:>6.2f}  {eps:<22}{e['observed_fraction']:>6.0%}"
 
@@ -239,8 +277,9 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
     from .limits import input_file
     from .mesh import extract_mesh
     from .radar import read_measurements
-    from .recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
     from .recon import load_field
+    from .recon.calibration import CALIBRATION_NAME, Calibration
+    from .recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
     from .scene import load_scene
 
     folder = Path(folder)
@@ -264,5 +303,14 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
     mesh = (trimesh.load(mesh_path, force="mesh") if mesh_path.is_file()
             else extract_mesh(field.sdf, field.lower_m, field.upper_m, 96))
     scene = load_scene(scene_name) if scene_name is not None else None
-    report = estimate_materials(field, mesh, acquisition, scene=scene, calibration=calibration_text(state.get("gain")))
+    calibration, reference = calibration_text(state.get("gain")), None
+    if (folder / CALIBRATION_NAME).is_file():
+        try:
+            held = json.loads(input_file(folder / CALIBRATION_NAME).read_text())
+            calibration = Calibration(held["reference"], float(held["gain"]),
+                                      None if held["ratio"] is None else float(held["ratio"]))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise RfsdfError(f"{folder / CALIBRATION_NAME}: not a calibration rfsdf wrote ({exc})") from None
+        calibration, reference = calibration_text(None, calibration), calibration.reference.partition("=")[0]
+    report = estimate_materials(field, mesh, acquisition, scene=scene, calibration=calibration, reference=reference)
     return materials_table(report.as_dict())

@@ -169,6 +169,35 @@ class TrainConfig(StrictModel):
         return name
 
 
+class CalibrationConfig(StrictModel):
+    # "NAME=MATERIAL": the scene's object NAME is of MATERIAL, one of field.materials; its
+    # surface is labelled so, and the gain fitted at each step makes its |Gamma| right, so
+    # the other classes are absolute (rfsdf.recon.calibration). None: materials are relative.
+    reference: str | None = None
+    # how near the reference's surface [m] a surface sample counts as the reference
+    reference_distance_m: PositiveFloat = 0.01
+
+    @field_validator("reference")
+    @classmethod
+    def _name_and_material(cls, text: str | None) -> str | None:
+        if text is None:
+            return None
+        from ..materials import get_material
+
+        name, sep, material = text.partition("=")
+        if not sep or not name.strip() or not material.strip():
+            raise ValueError(f"expected NAME=MATERIAL (an object of the scene and its material), got {text!r}")
+        return f"{name.strip()}={get_material(material.strip()).name}"
+
+    @property
+    def reference_object(self) -> str | None:
+        return None if self.reference is None else self.reference.partition("=")[0]
+
+    @property
+    def reference_material(self) -> str | None:
+        return None if self.reference is None else self.reference.partition("=")[2]
+
+
 class ReconConfig(StrictModel):
     field: FieldConfig = FieldConfig()
     init: InitConfig = InitConfig()
@@ -176,6 +205,15 @@ class ReconConfig(StrictModel):
     loss: LossConfig = LossConfig()
     sampling: SamplingConfig = SamplingConfig()
     train: TrainConfig = TrainConfig()
+    calibration: CalibrationConfig = CalibrationConfig()
+
+    @model_validator(mode="after")
+    def _reference_is_a_class(self) -> ReconConfig:
+        material = self.calibration.reference_material
+        if material is not None and material not in self.field.materials:
+            raise ValueError(f"calibration.reference: {material!r} is not one of field.materials "
+                             f"{self.field.materials} (a reference calibrates the material head's classes)")
+        return self
 
     def on_device(self, device) -> ReconConfig:
         """The same settings with ``train.device`` set to ``device`` (a name or a torch.device)."""

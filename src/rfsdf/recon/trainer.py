@@ -54,7 +54,10 @@ class Problem:
     real radar; None fits one gain at each step, and a material head then learns only the
     ratios of its surfaces' |Gamma| (a free reflectivity always has its gain fitted: it
     carries its own scale). ``material_labels``: points (Q, 3) [m] -> (Q,) class
-    indices into the config's materials (-1 unknown), for a cross-entropy term."""
+    indices into the config's materials (-1 unknown), for a cross-entropy term.
+    ``known_materials``: the same kind of function for surfaces whose material is known
+    (a calibration reference, ``recon.calibration``): they are rendered with it whatever
+    the head says, so with the gain fitted they set its scale."""
 
     measurements: Measurements
     grid: Grid
@@ -62,6 +65,7 @@ class Problem:
     clean: CleanResult | None = None
     gain: float | None = None
     material_labels: Callable[[torch.Tensor], torch.Tensor] | None = None
+    known_materials: Callable[[torch.Tensor], torch.Tensor] | None = None
 
     def digest(self) -> str:
         """SHA-256 of the samples, the acquisition geometry and the grid (hex, 16 digits)."""
@@ -244,6 +248,17 @@ class Trainer:
         fraction = min(max((self.step - delay) / max(self.config.train.steps - 1 - delay, 1), 0.0), 1.0)
         return round(sampling.cell_voxels_start + fraction * (sampling.cell_voxels - sampling.cell_voxels_start))
 
+    def surface_materials(self, *, geometry: bool = True) -> torch.Tensor | None:
+        """(Q, K) class probabilities at the renderer's surface candidates
+        (``CoherentRenderer.surface_materials``), certain of its material where the problem
+        knows it (``Problem.known_materials``); None with a free reflectivity."""
+        probabilities = self.renderer.surface_materials(self.field, geometry=geometry)
+        if probabilities is None or self.problem.known_materials is None:
+            return probabilities
+        known = self.problem.known_materials(self.renderer.candidates.anchors)
+        certain = torch.nn.functional.one_hot(known.clamp(min=0), probabilities.shape[1]).to(probabilities)
+        return torch.where((known >= 0)[:, None], certain, probabilities)
+
     def loss_terms(self) -> dict[str, torch.Tensor]:
         """Data and Eikonal losses for one step (draws from the generator). While f is frozen
         (the first ``train.geometry_delay_steps``) no graph is built through it: those steps
@@ -255,7 +270,7 @@ class Trainer:
         corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
         voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
         frozen = self.step < cfg.train.geometry_delay_steps
-        probabilities = self.renderer.surface_materials(self.field, geometry=not frozen)
+        probabilities = self.surface_materials(geometry=not frozen)
         predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities)
         observed = self.observed[views][:, voxels]
         known_gain = self.problem.gain is not None and probabilities is not None
