@@ -379,3 +379,34 @@ def test_a_calibration_reference_is_checked_before_any_work(tmp_path, tiny_files
     assert "object 'core' is observed by no view" in line, line  # inside the wooden shell
     line = _refused(["demo", "--quick", "--out", run, "--no-materials", "--reference", "metal_ball=metal"], tmp_path)
     assert "calibration.reference: 'metal' is not one of field.materials []" in line, line
+
+
+def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
+    """A parameter table with no start, a start outside its bounds, a free parameter on a
+    shape that has no such parameter or outside the objects' shapes, an unknown key, a model
+    that does not overlap the data's box, a model file with the neural fit: one error line
+    naming the file and field, exit 2, nothing written."""
+    model = tmp_path / "m.toml"
+    head = 'name = "m"\n[bounds]\nlower_m = [-0.05, -0.05, -0.05]\nupper_m = [0.05, 0.05, 0.05]\n'
+    ball = '[[objects]]\nname = "ball"\nmaterial = "metal"\n[objects.shape]\ntype = "sphere"\nradius_m = 0.01\n'
+    args = ["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--model", "primitive",
+            "--scene-model", model, "--bounds", "-0.05,-0.05,-0.05,0.05,0.05,0.05"]
+    for body, expected in (
+            ('center_m = { free = true }\n', "objects[0].shape.center_m: a parameter table needs a start"),
+            ('center_m = { start = [0.04, 0, 0], bounds_m = [[-0.01, -0.01, -0.01], [0.01, 0.01, 0.01]] }\n',
+             "objects[0].shape.center_m.start: [0.04, 0, 0] is outside its bounds"),
+            ('center_m = { start = [0, 0, 0], step = 1 }\n', "objects[0].shape.center_m: unknown key(s) step"),
+            ('half_extents_m = { start = [0.01, 0.01, 0.01] }\n', "objects[0].shape.sphere.half_extents_m: Extra inputs"),
+    ):
+        model.write_text(head + ball + body)
+        line = _refused(args, tmp_path)
+        assert f"{model}: " in line and expected in line, line
+    model.write_text(head.replace("lower_m = [-0.05, -0.05, -0.05]", "lower_m = { start = [-0.05, -0.05, -0.05] }")
+                     + ball)
+    assert "bounds: only the objects' shape parameters may be free" in _refused(args, tmp_path)
+    model.write_text(head.replace("0.05", "1.05").replace("-1.05", "0.95") + ball.replace(
+        "radius_m = 0.01", "radius_m = 0.01\ncenter_m = [1.0, 1.0, 1.0]"))
+    assert "bounds: the model's box" in _refused(args, tmp_path)
+    model.write_text(head + ball)
+    line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--scene-model", model], tmp_path)
+    assert "--scene-model: only with --model primitive" in line, line

@@ -290,17 +290,42 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
               help="Calibrate the gain with object NAME of --scene, known to be MATERIAL (overrides the config's "
                    "calibration.reference).")
 @click.option("--scene", "scene_name", default=None,
-              help="Scene file or preset that places the calibration reference (only that object is used).")
+              help="Scene file or preset that places the calibration reference (only that object is used); with "
+                   "--model primitive, the true scene, to report each free parameter's truth.")
+@click.option("--model", "model_kind", type=click.Choice(["neural", "primitive"]), default="neural", show_default=True,
+              help="neural: the GeRaF fit; primitive: the free parameters of --scene-model.")
+@click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
+              help="With --model primitive: a scene file whose parameters may be free tables (README, Rooms).")
+@click.option("--steps", type=click.IntRange(1, 100_000), default=150, show_default=True,
+              help="With --model primitive: gradient steps.")
+@click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,
+              help="With --model primitive and no --scene-model: start from --scene with every length free and moved "
+                   "by up to this much [m] (seeded).")
 @_device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
+                    model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
                     device: str | None):
-    """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply.
+    """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
+    or (--model primitive) a scene model's free parameters: primitive.json,
+    fitted-scene.toml, mesh.ply.
 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA.
     A calibration reference (--reference, or calibration.reference in --config) needs the
     --scene that places it; its result goes to calibration.json."""
+    if model_kind == "primitive":
+        given = [name for name, value in (("--image", image_path), ("--config", config_path), ("--resume", resume),
+                                          ("--reference", reference)) if value]
+        if given:
+            raise click.UsageError(f"{', '.join(given)}: not for --model primitive")
+        if scene_model_path is None and scene_name is None:
+            raise click.UsageError("--model primitive needs --scene-model, or --scene to start from its truth")
+        _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset,
+                               _device(device or "auto"))
+        return
+    if scene_model_path is not None:
+        raise click.UsageError("--scene-model: only with --model primitive")
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -350,6 +375,53 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         click.echo(calibration.text())
         if calibration.warning() is not None:
             click.echo(f"warning: {calibration.warning()}", err=True)
+
+
+def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: float | None, model_path: Path | None,
+                           scene_name: str | None, steps: int, start_offset: float, device) -> None:
+    """``reconstruct --model primitive``: fit the model (``model_path``, else the scene
+    ``scene_name`` with every length free, ``start_offset`` off), write its parameters, the
+    fitted scene file and its mesh into ``out``."""
+    import tomli_w
+
+    from .atomic import atomic_path
+    from .geometry import Grid
+    from .jsonio import to_json
+    from .mesh import export_mesh
+    from .radar import read_measurements
+    from .recon import Problem
+    from .recon.primitive import fit_primitive
+    from .scene import Scene, load_scene
+    from .scene_model import SceneModel, load_scene_model
+
+    _refuse_overwriting_inputs(out, data, model_path)
+    truth = load_scene(scene_name).spec if scene_name is not None else None
+    model = (load_scene_model(model_path) if model_path is not None
+             else SceneModel.from_scene(truth, start_offset, seed=0))
+    measurements = read_measurements(data)
+    lower, upper = _image_box(data, measurements, bounds, None)
+    model_lower, model_upper = model.spec.bounds.lower_m, model.spec.bounds.upper_m
+    if any(lo >= mu or ml >= up for lo, up, ml, mu in zip(lower, upper, model_lower, model_upper)):
+        raise ValueError(f"{model.source}: bounds: the model's box {list(model_lower)} .. {list(model_upper)} does not "
+                         f"overlap the data's {list(lower)} .. {list(upper)}")
+    grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
+    fit = fit_primitive(Problem(measurements, grid, str(data)), model, steps=steps, device=device, progress=True)
+    fitted = Scene(model.fitted_spec(fit.field.fitted()), model.base_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out / "primitive.json") as tmp:
+        tmp.write_text(to_json(fit.as_dict(truth)))
+    with atomic_path(out / "fitted-scene.toml") as tmp:
+        tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
+    mesh = fitted.ground_truth_mesh()
+    click.echo(f"wrote {out / 'primitive.json'}, {out / 'fitted-scene.toml'} and "
+               f"{export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
+    for row in fit.free_table(truth):
+        truth_text = "" if row["truth"] is None else f"  truth {_mm(row['truth'])}"
+        click.echo(f"  {row['name']:<40} start {_mm(row['start'])}  fitted {_mm(row['fitted'])}{truth_text}")
+
+
+def _mm(values: list[float]) -> str:
+    return "[" + ", ".join(f"{v * 1e3:.1f}" for v in values) + "] mm"
 
 
 def _with_reference(config, reference: str, config_path: Path | None):

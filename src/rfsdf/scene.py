@@ -7,6 +7,7 @@ A scene is loaded from a TOML file (see :mod:`rfsdf.scene_spec`) or a preset nam
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Callable
 
@@ -96,27 +97,36 @@ def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
     return geo.MeshSDF(mesh)
 
 
-def build_shape(spec, base_dir: Path = Path(".")) -> geo.SDF:
-    """The SDF described by a shape table (recursively for CSG), with its transform applied."""
+def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None) -> geo.SDF:
+    """The SDF described by a shape table (recursively for CSG), with its transform applied.
+
+    ``values`` maps (id of a spec node, field name) to a value used instead of the node's
+    own, e.g. a fitted tensor (``rfsdf.recon.primitive``): the SDF is then differentiable in it."""
+    values = values or {}
+
+    def get(node, field: str):
+        return values.get((id(node), field), getattr(node, field))
+
     t = spec.type
+    v = partial(get, spec)
     if t == "sphere":
-        sdf = geo.Sphere(spec.radius_m, spec.center_m)
+        sdf = geo.Sphere(v("radius_m"), v("center_m"))
     elif t == "box":
-        sdf = geo.Box(spec.half_extents_m, spec.center_m)
+        sdf = geo.Box(v("half_extents_m"), v("center_m"))
     elif t == "halfspace":
-        sdf = geo.HalfSpace(spec.normal, spec.offset_m)
+        sdf = geo.HalfSpace(v("normal"), v("offset_m"))
     elif t == "cylinder":
-        sdf = geo.Cylinder(spec.radius_m, spec.axis, spec.point_m)
+        sdf = geo.Cylinder(v("radius_m"), v("axis"), v("point_m"))
     elif t == "capped_cylinder":
-        sdf = geo.CappedCylinder(spec.radius_m, spec.height_m, spec.axis, spec.center_m)
+        sdf = geo.CappedCylinder(v("radius_m"), v("height_m"), v("axis"), v("center_m"))
     elif t == "torus":
-        sdf = geo.Torus(spec.major_radius_m, spec.minor_radius_m, spec.axis, spec.center_m)
+        sdf = geo.Torus(v("major_radius_m"), v("minor_radius_m"), v("axis"), v("center_m"))
     elif t == "capsule":
-        sdf = geo.Capsule(spec.start_m, spec.end_m, spec.radius_m)
+        sdf = geo.Capsule(v("start_m"), v("end_m"), v("radius_m"))
     elif t == "mesh":
         sdf = _mesh_shape(spec, base_dir)
     elif isinstance(spec, CSGSpec):
-        children = [build_shape(c, base_dir) for c in spec.children]
+        children = [build_shape(c, base_dir, values) for c in spec.children]
         combine = {
             "union": geo.union, "intersection": geo.intersection, "difference": geo.difference,
             "smooth_union": lambda *c: geo.smooth_union(*c, blend_m=spec.blend_m),
@@ -131,8 +141,9 @@ def build_shape(spec, base_dir: Path = Path(".")) -> geo.SDF:
             sdf = sdf.scale(tf.scale)
         if tf.rotate_rad != 0.0:
             sdf = sdf.rotate(tf.rotate_axis, tf.rotate_rad)
-        if any(tf.translate_m):
-            sdf = sdf.translate(tf.translate_m)
+        translate = get(tf, "translate_m")
+        if (id(tf), "translate_m") in values or any(translate):
+            sdf = sdf.translate(translate)
     return sdf
 
 

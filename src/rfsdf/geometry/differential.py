@@ -33,7 +33,10 @@ def gradient_and_curvature(sdf: SDFCallable, points: torch.Tensor) -> tuple[torc
     The divergence of the unit normal is the sum of the two principal curvatures of the level
     set through each point (2/R on a sphere of radius R, 1/R on a cylinder, 0 on a plane,
     positive where the surface is convex): a surface element moved by V along its normal
-    grows by the factor 1 + curvature * V. From the Hessian H as (tr H - n^T H n) / |grad f|.
+    grows by the factor 1 + curvature * V. From the Hessian H as (tr H - n^T H n) / |grad f|;
+    0 where f is not twice differentiable and autograd's second derivative is NaN (inside a
+    box, whose outside part |max(q, 0)| sits at the norm's kink: there f is the largest of
+    the planes' distances, flat on each side).
     """
     points = as_points(points)
     with torch.enable_grad():
@@ -42,6 +45,7 @@ def gradient_and_curvature(sdf: SDFCallable, points: torch.Tensor) -> tuple[torc
         rows = [torch.autograd.grad(grad[:, i].sum(), p, retain_graph=i < 2, allow_unused=True)[0]
                 if grad.requires_grad else None for i in range(3)]  # None where f is linear in p
     hessian = torch.stack([torch.zeros_like(p) if r is None else r for r in rows], dim=1).detach()  # (N, 3, 3)
+    hessian = torch.nan_to_num(hessian, nan=0.0)
     grad = grad.detach()
     norm = grad.norm(dim=1).clamp(min=torch.finfo(grad.dtype).tiny)
     along = torch.einsum("ni,nij,nj->n", grad, hessian, grad) / norm**2

@@ -14,11 +14,13 @@ from .base import SDF, _param, as_vector
 __all__ = ["Sphere", "Box", "HalfSpace", "Cylinder", "CappedCylinder", "Torus", "Capsule"]
 
 
-def _positive(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number [m], got {value}")
-    return value
+def _positive(value, name: str):
+    """``value`` when it is a positive finite number [m]: a float, or a 0-d tensor kept as it
+    is (a fitted parameter stays differentiable, ``rfsdf.recon.primitive``)."""
+    number = float(value)
+    if not (math.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number [m], got {number}")
+    return value if isinstance(value, torch.Tensor) else number
 
 
 def _unit(vector, name: str) -> torch.Tensor:
@@ -51,7 +53,11 @@ class Box(SDF):
 
     def _evaluate(self, points):
         q = (points - _param(self.center, points)).abs() - _param(self.half_extents, points)
-        outside = torch.linalg.norm(q.clamp(min=0), dim=1)
+        # |max(q, 0)|, with the norm's kink at 0 (every point inside) taken by the clamp, whose
+        # derivative there is 0, not by the norm's, whose second derivative is NaN: the primitive
+        # fit differentiates the normals of inside points in the box's parameters
+        squared = (q.clamp(min=0) ** 2).sum(1)
+        outside = squared.clamp(min=torch.finfo(squared.dtype).tiny).sqrt()
         inside = q.max(dim=1).values.clamp(max=0)
         return outside + inside
 

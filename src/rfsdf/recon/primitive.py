@@ -1,0 +1,142 @@
+"""The primitive fit: a scene model's free parameters fitted by gradient descent through the
+coherent renderer and the data loss of the neural fit.
+
+A :class:`PrimitiveField` stands where the neural field stands in the renderer: its ``sdf``
+is the scene model's analytic SDF built from the current parameter values
+(``scene.build_shape`` with the free ones as tensors, so f is differentiable in them), and
+each surface sample reflects by the Fresnel coefficient of its object's material (the
+renderer's material path with certain classes). The analytic SDFs are exact, so there is
+no Eikonal term; the samples move with the parameters through the renderer's projection
+onto f = 0 (``recon/surface.py``), as the neural surface moves with its weights.
+
+The loss compares RMS amplitudes over cubes of voxels (``sampling.pooled_amplitude``), and
+the cubes shrink from ``cell_voxels_start`` to ``cell_voxels`` over the fit: a coarse to
+fine schedule over the image grid, since a surface more than lambda/4 off sees the phase of
+its own glint wrap (the tiny neural fit's 22 mm ripple minimum, README "Reproducibility").
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..materials import get_material
+from ..progress import progress_bar
+from ..scene import build_shape
+from ..scene_model import SceneModel
+from .losses import amplitude_loss
+from .render import CoherentRenderer
+from .sampling import cell_voxels, data_voxel_probabilities, pooled_amplitude, sample_data_voxels
+from .trainer import Problem
+
+__all__ = ["PrimitiveField", "PrimitiveFit", "fit_primitive"]
+
+
+class PrimitiveField(torch.nn.Module):
+    """A scene model with its free parameters as torch parameters (float64)."""
+
+    def __init__(self, model: SceneModel):
+        super().__init__()
+        self.model = model
+        self.values = torch.nn.ParameterList(
+            [torch.nn.Parameter(torch.tensor(p.start[0] if p.scalar else p.start, dtype=torch.float64))
+             for p in model.free])
+        self.lower = [torch.tensor(p.lower, dtype=torch.float64).reshape(v.shape) for p, v in zip(model.free, self.values)]
+        self.upper = [torch.tensor(p.upper, dtype=torch.float64).reshape(v.shape) for p, v in zip(model.free, self.values)]
+        names = [get_material(o.material).name for o in model.spec.objects]  # catalogue materials only
+        self.materials = tuple(dict.fromkeys(names))  # the classes, as a material head's
+        self._class = torch.tensor([self.materials.index(name) for name in names])
+
+    def object_sdfs(self) -> list:
+        """Each object's SDF at the current parameter values."""
+        overrides = {}
+        for parameter, value in zip(self.model.free, self.values):
+            node, field = self.model.node(parameter.path)
+            overrides[(id(node), field)] = value
+        return [build_shape(o.shape, self.model.base_dir, overrides) for o in self.model.spec.objects]
+
+    def sdf(self, points: torch.Tensor) -> torch.Tensor:
+        """The model's SDF (N,) [m] at points (N, 3), differentiable in the free parameters."""
+        return torch.stack([sdf(points) for sdf in self.object_sdfs()]).min(0).values
+
+    def material(self, points: torch.Tensor) -> torch.Tensor:
+        """(N, K) class probabilities: certain of the nearest object's material."""
+        with torch.no_grad():
+            nearest = torch.stack([sdf(points) for sdf in self.object_sdfs()]).argmin(0)
+        return torch.nn.functional.one_hot(self._class.to(points.device)[nearest], len(self.materials)).to(points.dtype)
+
+    @torch.no_grad()
+    def clamp_(self) -> None:
+        """Every free parameter back inside its bounds."""
+        for value, lower, upper in zip(self.values, self.lower, self.upper):
+            value.copy_(torch.maximum(torch.minimum(value, upper.to(value.device)), lower.to(value.device)))
+
+    def fitted(self) -> list[list[float]]:
+        """The free parameters' current values, as lists of floats."""
+        return [np.atleast_1d(v.detach().cpu().numpy()).tolist() for v in self.values]
+
+
+@dataclass(frozen=True)
+class PrimitiveFit:
+    """The fitted field, the data loss per step and the wall time [s]."""
+
+    field: PrimitiveField
+    losses: list[float]
+    seconds: float
+
+    def free_table(self, truth=None) -> list[dict]:
+        """One row per free parameter: name, unit, start, fitted and (given the true scene
+        spec ``truth`` of the same structure) truth, each a list of floats."""
+        model = self.field.model
+        truths = None if truth is None else model.values_in(truth)
+        return [{"name": p.name, "unit": "m", "start": p.start, "fitted": fitted,
+                 "truth": None if truths is None else truths[i]}
+                for i, (p, fitted) in enumerate(zip(model.free, self.field.fitted()))]
+
+    def as_dict(self, truth=None) -> dict:
+        return {"free": self.free_table(truth), "fit_s": round(self.seconds, 2), "steps": len(self.losses),
+                "loss_first": self.losses[0] if self.losses else None,
+                "loss_last": self.losses[-1] if self.losses else None}
+
+
+def fit_primitive(problem: Problem, model: SceneModel, *, steps: int = 150, lr: float = 5e-4,
+                  cell_voxels_start: int = 4, cell_voxels_end: int = 1, data_batch: int = 4096,
+                  views_per_step: int = 6, refresh_every: int = 1, data_focus: float = 0.5, seed: int = 0,
+                  device="cpu", progress: bool = False) -> PrimitiveFit:
+    """Fit ``model``'s free parameters to ``problem``'s data (module docstring): Adam at
+    ``lr`` [m per step, about] for ``steps``, each on ``views_per_step`` random views and
+    about ``data_batch`` voxels in cubes shrinking from ``cell_voxels_start`` to
+    ``cell_voxels_end`` voxels per edge; new surface samples every ``refresh_every`` steps."""
+    clock = time.perf_counter()
+    generator = torch.Generator().manual_seed(seed)
+    field = PrimitiveField(model).to(device)
+    renderer = CoherentRenderer(problem.measurements, problem.grid, device=device)
+    observed = renderer.observed.abs()
+    probabilities = data_voxel_probabilities(observed, data_focus)
+    optimizer = torch.optim.Adam(field.parameters(), lr=lr)
+    grid_points = problem.grid.points(device=device)
+    losses = []
+    for step in progress_bar(range(steps), desc="primitive fit", enabled=progress):
+        if step % refresh_every == 0:
+            with torch.no_grad():
+                values = torch.cat([field.sdf(chunk).float() for chunk in grid_points.split(1 << 16)])
+            renderer.refresh(field.sdf, values, generator)
+        fraction = step / max(steps - 1, 1)
+        size = round(cell_voxels_start + fraction * (cell_voxels_end - cell_voxels_start))
+        views = torch.randperm(renderer.num_views, generator=generator)[:views_per_step].sort().values.to(device)
+        corners = sample_data_voxels(probabilities, max(1, data_batch // size**3), generator)
+        voxels = cell_voxels(corners, problem.grid.shape, size).flatten().to(device)
+        predicted = renderer(field, views, voxels, probabilities=field.material(renderer.candidates.anchors))
+        target = observed[views][:, voxels]
+        if size > 1:
+            predicted, target = pooled_amplitude(predicted, len(corners)), pooled_amplitude(target, len(corners))
+        loss = amplitude_loss(predicted, target)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        field.clamp_()
+        losses.append(float(loss.detach()))
+    return PrimitiveFit(field, losses, time.perf_counter() - clock)

@@ -1,0 +1,214 @@
+"""A scene model: a scene file whose shape parameters may be free, for the primitive fit.
+
+Written like a scene file (``rfsdf.scene_spec``); any numeric parameter of a shape (a
+length, a vector of lengths, a transform's ``translate_m``) may instead be a table::
+
+    center_m = { start = [0.4, -1.9, 1.5], free = true, bounds_m = 0.3 }
+
+``start`` is where the fit begins; ``free`` (default true) whether it is fitted or held at
+its start; ``bounds_m`` how far the fit may take it: a number, the most each component may
+move from the start [m], or ``[lower, upper]``, absolute bounds (numbers, or vectors like
+the start). Materials are the objects' own (a free material is not built yet).
+``SceneModel.from_scene`` makes the start model ``reconstruct --model primitive --scene``
+uses without a model file: the true scene with every length parameter free and moved by a
+seeded random offset.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .config import read_toml, validate
+from .errors import RfsdfError
+from .scene_spec import SceneSpec
+
+__all__ = ["FreeParameter", "SceneModel", "load_scene_model", "POSITION_FIELDS", "SIZE_FIELDS"]
+
+POSITION_FIELDS = ("center_m", "point_m", "start_m", "end_m", "translate_m")  # may move either way
+SIZE_FIELDS = ("half_extents_m", "radius_m", "height_m", "major_radius_m", "minor_radius_m")  # stay positive
+_KEYS = {"start", "free", "bounds_m"}
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One fitted parameter: ``name`` (object and field, e.g. ``west.center_m``), ``path``
+    into the scene spec, its ``start`` and bounds (lists of floats, one per component; a
+    scalar parameter has one), and whether it is a ``scalar``."""
+
+    name: str
+    path: tuple
+    start: list[float]
+    lower: list[float]
+    upper: list[float]
+    scalar: bool
+
+
+def _is_parameter_table(value) -> bool:
+    return isinstance(value, dict) and bool(_KEYS & set(value)) and "type" not in value
+
+
+def _components(value, where: str) -> tuple[list[float], bool]:
+    """A number or a list of numbers as (list of floats, scalar?)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, list)):
+        raise RfsdfError(f"{where}: expected a number or a list of numbers, got {value!r}")
+    items = value if isinstance(value, list) else [value]
+    if not items or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                        for v in items):
+        raise RfsdfError(f"{where}: expected finite numbers, got {value!r}")
+    return [float(v) for v in items], not isinstance(value, list)
+
+
+def _parameter(table: dict, where: str) -> tuple[object, FreeParameter | None]:
+    """The start value to put in the scene file and the FreeParameter (None when held)."""
+    unknown = set(table) - _KEYS
+    if unknown:
+        raise RfsdfError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} (a parameter table has "
+                         "start, free, bounds_m)")
+    if "start" not in table:
+        raise RfsdfError(f"{where}: a parameter table needs a start")
+    start, scalar = _components(table["start"], f"{where}.start")
+    free = table.get("free", True)
+    if not isinstance(free, bool):
+        raise RfsdfError(f"{where}.free: expected true or false, got {free!r}")
+    bounds = table.get("bounds_m")
+    if bounds is None:
+        lower, upper = [-math.inf] * len(start), [math.inf] * len(start)
+    elif isinstance(bounds, list) and len(bounds) == 2 and (scalar or all(isinstance(b, list) for b in bounds)):
+        lower = _components(bounds[0], f"{where}.bounds_m[0]")[0]
+        upper = _components(bounds[1], f"{where}.bounds_m[1]")[0]
+    else:
+        margin, one = _components(bounds, f"{where}.bounds_m")
+        if not one or margin[0] <= 0:
+            raise RfsdfError(f"{where}.bounds_m: expected a positive number (the most it may move [m]) or "
+                             f"[lower, upper] (vectors for a vector), got {bounds!r}")
+        lower, upper = [s - margin[0] for s in start], [s + margin[0] for s in start]
+    if not len(lower) == len(upper) == len(start):
+        raise RfsdfError(f"{where}.bounds_m: start has {len(start)} component(s), its bounds another count")
+    if any(not lo <= s <= hi for lo, s, hi in zip(lower, start, upper)):
+        raise RfsdfError(f"{where}.start: {table['start']!r} is outside its bounds {lower} .. {upper}")
+    value = start[0] if scalar else start
+    return value, (FreeParameter("", (), start, lower, upper, scalar) if free else None)
+
+
+def _substitute(node, path: tuple, where: str, found: list) -> object:
+    """``node`` with every parameter table replaced by its start; the free ones appended to
+    ``found`` as (path, FreeParameter)."""
+    if _is_parameter_table(node):
+        value, parameter = _parameter(node, where)
+        if parameter is not None:
+            found.append((path, parameter))
+        return value
+    if isinstance(node, dict):
+        return {k: _substitute(v, path + (k,), f"{where}.{k}", found) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_substitute(v, path + (i,), f"{where}[{i}]", found) for i, v in enumerate(node)]
+    return node
+
+
+@dataclass(frozen=True)
+class SceneModel:
+    """A scene spec at its start, the parameters the fit may move, where it came from (for
+    messages) and the folder its mesh paths are relative to."""
+
+    spec: SceneSpec
+    free: list[FreeParameter]
+    source: str
+    base_dir: Path = Path(".")
+
+    @classmethod
+    def from_table(cls, table: dict, source: str, base_dir: Path = Path(".")) -> SceneModel:
+        """A model from a parsed TOML table; RfsdfError 'source: field: reason' on bad input."""
+        found: list = []
+        substituted = {}
+        for key, value in table.items():
+            if key == "objects" and isinstance(value, list):
+                substituted[key] = [_substitute(obj, ("objects", i), f"{source}: objects[{i}]", found)
+                                    if isinstance(obj, dict) else obj for i, obj in enumerate(value)]
+            elif _is_parameter_table(value) or (isinstance(value, dict) and any(map(_is_parameter_table,
+                                                                                 value.values()))):
+                raise RfsdfError(f"{source}: {key}: only the objects' shape parameters may be free")
+            else:
+                substituted[key] = value
+        spec = validate(SceneSpec, substituted, source)
+        free = []
+        for path, parameter in found:
+            if len(path) < 3 or path[2] != "shape":
+                raise RfsdfError(f"{source}: {_dotted(path)}: only the objects' shape parameters may be free")
+            name = f"{spec.objects[path[1]].name}.{_dotted(path[3:])}"
+            free.append(FreeParameter(name, path, parameter.start, parameter.lower, parameter.upper, parameter.scalar))
+        return cls(spec, free, source, base_dir)
+
+    @classmethod
+    def from_scene(cls, spec: SceneSpec, offset_m: float, seed: int) -> SceneModel:
+        """``spec`` with every length parameter of every shape free, its start moved from
+        the truth by a uniform random offset in [-offset_m, offset_m] per component (sizes
+        kept at least half their true value), bounds 2 x offset_m about the start."""
+        rng = np.random.default_rng(seed)
+        table = spec.model_dump(mode="json")
+
+        def free_lengths(node):
+            if isinstance(node, dict):
+                for key, value in list(node.items()):
+                    if key in POSITION_FIELDS + SIZE_FIELDS and value is not None and not _is_parameter_table(value):
+                        truth = np.atleast_1d(np.asarray(value, dtype=float))
+                        start = truth + rng.uniform(-offset_m, offset_m, size=truth.shape)
+                        if key in SIZE_FIELDS:
+                            start = np.maximum(start, truth / 2)
+                        margin = 2 * offset_m
+                        start_value = float(start[0]) if np.ndim(value) == 0 else start.tolist()
+                        node[key] = {"start": start_value, "free": True, "bounds_m": margin}
+                    else:
+                        free_lengths(value)
+            elif isinstance(node, list):
+                for item in node:
+                    free_lengths(item)
+
+        for obj in table["objects"]:
+            free_lengths(obj["shape"])
+        return cls.from_table(table, f"scene {spec.name!r} with every length free")
+
+    def fitted_spec(self, values: list[list[float]]) -> SceneSpec:
+        """The scene spec with the free parameters at ``values`` (one list per parameter, as
+        :attr:`free`): the fitted scene, a scene file like any other."""
+        table = self.spec.model_dump(mode="json")
+        for parameter, value in zip(self.free, values):
+            node = table
+            for step in parameter.path[:-1]:
+                node = node[step]
+            node[parameter.path[-1]] = value[0] if parameter.scalar else list(value)
+        return SceneSpec.model_validate(table)
+
+    def values_in(self, spec: SceneSpec) -> list[list[float]] | None:
+        """The free parameters' values in another spec of the same structure (the truth, for
+        a report), or None when it has not the same objects and shapes."""
+        try:
+            table, out = spec.model_dump(mode="json"), []
+            for parameter in self.free:
+                node = table
+                for step in parameter.path:
+                    node = node[step]
+                out.append([float(v) for v in np.atleast_1d(node)])
+            return out
+        except (KeyError, IndexError, TypeError):
+            return None
+
+    def node(self, path: tuple):
+        """(spec node, field name) that ``path`` points at in :attr:`spec`."""
+        node = self.spec
+        for step in path[:-1]:
+            node = node[step] if isinstance(step, int) else getattr(node, step)
+        return node, path[-1]
+
+
+def _dotted(path: tuple) -> str:
+    return "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path).lstrip(".")
+
+
+def load_scene_model(path) -> SceneModel:
+    """A scene model from a TOML file; RfsdfError 'file: field: reason' on bad input."""
+    path = Path(path)
+    return SceneModel.from_table(read_toml(path), str(path), path.parent)
