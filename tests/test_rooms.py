@@ -10,7 +10,7 @@ import torch
 
 from rfsdf.radar import simulate
 from rfsdf.radar.acquisition import SPEED_OF_LIGHT
-from rfsdf.radar.facets import triangle_phase_integral
+from rfsdf.radar.facets import facet_phase_integrals, triangle_phase_integral
 from rfsdf.radar.system import Radar
 from rfsdf.scene import Scene
 from rfsdf.scene_spec import SceneSpec
@@ -55,6 +55,20 @@ def test_the_triangle_phase_integral_matches_quadrature(dtype):
             closed = complex(triangle_phase_integral(torch.tensor(alpha, dtype=dtype)))
             assert abs(closed - _triangle_mean_by_quadrature(alpha)) < max(tolerance, 1e-8 * scale**2), (scale, alpha)
     assert complex(triangle_phase_integral(torch.zeros(3, dtype=dtype))) == 1
+
+
+@pytest.mark.parametrize("uniform", [True, False])
+def test_the_compiled_facet_integrals_equal_the_closed_form(uniform):
+    """The simulator's kernel (phasors stepped across a uniform band; the torch form for
+    another) against the closed form in float64, over facets from degenerate to 40 rad wide."""
+    generator = torch.Generator().manual_seed(0)
+    extra = torch.randn(500, 3, generator=generator, dtype=torch.float64) * 0.005
+    extra[:50] *= 1e-6  # nearly degenerate: the Taylor branch
+    k = torch.linspace(1190.0, 1340.0, 400, dtype=torch.float64)
+    if not uniform:
+        k[1::2] += 0.3
+    reference = triangle_phase_integral(k[:, None, None] * extra[None])
+    assert float((facet_phase_integrals(extra, k) - reference).abs().max()) < 2e-6
 
 
 def test_a_thin_plate_meshes_and_samples_whatever_its_aspect_ratio():

@@ -23,13 +23,16 @@ a 1 cm facet.
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
+import numba
+import numpy as np
 import torch
 
 from .acquisition import SPEED_OF_LIGHT, Acquisition
 
-__all__ = ["triangle_phase_integral", "facet_weight"]
+__all__ = ["triangle_phase_integral", "facet_phase_integrals", "facet_weight"]
 
 # spreads of the corners' phases [rad] below which F is taken from its Taylor expansion: its
 # next term is ~ spread^3 / 100; the divided difference's rounding ~ eps / spread
@@ -47,9 +50,9 @@ def _first_difference(a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, t
 def triangle_phase_integral(alpha: torch.Tensor) -> torch.Tensor:
     """F (...,) complex: the mean of exp(-j a(x)) over a triangle, a linear across it with
     the values alpha (..., 3) [rad] at the corners; 1 at alpha = 0. Real arithmetic in
-    alpha's dtype (float32 is enough: the phases of a facet are tens of radians, and the
-    divided difference divides by the widest spread, not the narrowest); complex64 for
-    float32, complex128 for float64."""
+    alpha's dtype; complex64 for float32, complex128 for float64. The closed form written
+    out in torch, for any shape: the reference the compiled :func:`facet_phase_integrals`,
+    which the simulator runs, is tested against."""
     shape, alpha = alpha.shape[:-1], alpha.reshape(-1, 3)
     low, high = alpha.min(-1).values, alpha.max(-1).values
     middle = alpha.sum(-1) - low - high
@@ -66,6 +69,64 @@ def triangle_phase_integral(alpha: torch.Tensor) -> torch.Tensor:
     return out.reshape(shape)
 
 
+@numba.njit(cache=True)
+def _rotor(x, k0, dk):
+    """cos, sin of k0 x and of dk x: a phasor at the first wavenumber and its step."""
+    return math.cos(k0 * x), math.sin(k0 * x), math.cos(dk * x), math.sin(dk * x)
+
+
+@numba.njit(parallel=True, cache=True)
+def _phase_integrals(extra, k0, dk, count, close, out):
+    """out[n, q] = F of triangle q at wavenumber k0 + n dk (as triangle_phase_integral with
+    alpha = k extra[q]), facets in parallel; out (K, Q) complex64. The sines and cosines of
+    k x come from phasors turned by dk x per wavenumber (six products instead of a sine)."""
+    for q in numba.prange(extra.shape[0]):
+        x, y, z = extra[q, 0], extra[q, 1], extra[q, 2]
+        low, high = min(x, min(y, z)), max(x, max(y, z))
+        middle = x + y + z - low - high
+        mean = (x + y + z) / 3.0
+        moment = ((x - mean) ** 2 + (y - mean) ** 2 + (z - mean) ** 2) / 24.0
+        # phasors of k m1, k h1, k m2, k h2 and k mean: (cos, sin) now and per step
+        c1, s1, dc1, ds1 = _rotor(0.5 * (middle + high), k0, dk)
+        ch1, sh1, dch1, dsh1 = _rotor(0.5 * (high - middle), k0, dk)
+        c2, s2, dc2, ds2 = _rotor(0.5 * (low + middle), k0, dk)
+        ch2, sh2, dch2, dsh2 = _rotor(0.5 * (middle - low), k0, dk)
+        cm, sm, dcm, dsm = _rotor(mean, k0, dk)
+        for n in range(count):
+            w = k0 + n * dk
+            spread = w * (high - low)
+            if spread <= close:
+                taper = 1.0 - w * w * moment
+                out[n, q] = complex(cm * taper, -sm * taper)
+            else:
+                h1, h2 = 0.5 * w * (high - middle), 0.5 * w * (middle - low)
+                sinc1 = sh1 / h1 if h1 > 1e-9 else 1.0
+                sinc2 = sh2 / h2 if h2 > 1e-9 else 1.0
+                scale = -2.0 / spread
+                out[n, q] = complex(scale * (s2 * sinc2 - s1 * sinc1), scale * (c2 * sinc2 - c1 * sinc1))
+            c1, s1 = c1 * dc1 - s1 * ds1, s1 * dc1 + c1 * ds1
+            ch1, sh1 = ch1 * dch1 - sh1 * dsh1, sh1 * dch1 + ch1 * dsh1
+            c2, s2 = c2 * dc2 - s2 * ds2, s2 * dc2 + c2 * ds2
+            ch2, sh2 = ch2 * dch2 - sh2 * dsh2, sh2 * dch2 + ch2 * dsh2
+            cm, sm = cm * dcm - sm * dsm, sm * dcm + cm * dsm
+
+
+def facet_phase_integrals(extra_path_m: torch.Tensor, wavenumbers_rad_m: torch.Tensor) -> torch.Tensor:
+    """(K, Q) complex64: F of triangles whose corners' paths exceed their centroid's by
+    ``extra_path_m`` (Q, 3) [m], at uniformly spaced wavenumbers (K,) [rad/m] (the torch
+    form for others); compiled (numba, parallel over facets, float64 inside)."""
+    k = wavenumbers_rad_m.detach().cpu().double()
+    steps = torch.diff(k)
+    if len(k) > 1 and bool((steps - steps.mean()).abs().max() > 1e-9 * k.abs().max()):
+        alpha = k.to(extra_path_m.device)[:, None, None] * extra_path_m.double()[None]
+        return triangle_phase_integral(alpha).to(torch.complex64)
+    extra = np.ascontiguousarray(extra_path_m.detach().cpu().double().numpy())
+    out = np.empty((len(k), len(extra)), np.complex64)
+    _phase_integrals(extra, float(k[0]), float(steps.mean()) if len(k) > 1 else 0.0, len(k),
+                     _CLOSE[torch.float64], out)
+    return torch.from_numpy(out).to(extra_path_m.device)
+
+
 def facet_weight(acquisition: Acquisition, centroids_m: torch.Tensor,
                  corners_m: torch.Tensor) -> Callable[[slice, slice], torch.Tensor]:
     """The ``weight`` of :meth:`~rfsdf.radar.operator.SensingOperator.forward_weighted` for
@@ -76,14 +137,13 @@ def facet_weight(acquisition: Acquisition, centroids_m: torch.Tensor,
 
     def weight(views: slice, pts: slice) -> torch.Tensor:
         p, corners = centroids_m[pts].double(), corners_m[pts].double()
-        wavenumbers = k.to(p.device)[:, None, None]
         out = []
         for s, r in zip(tx[views].to(p.device), rx[views].to(p.device)):
             def path(x):  # (..., 3) -> (...) [m]
                 return (s - x).norm(dim=-1) + (r - x).norm(dim=-1)
 
             extra = path(p[:, None, :] + corners) - path(p)[:, None]  # (q, 3): each corner's path over the centroid's
-            out.append(triangle_phase_integral((wavenumbers * extra[None]).float()))  # (K, q)
+            out.append(facet_phase_integrals(extra, k))  # (K, q)
         return torch.stack(out)
 
     return weight

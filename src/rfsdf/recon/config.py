@@ -171,8 +171,9 @@ class TrainConfig(StrictModel):
 
 class CalibrationConfig(StrictModel):
     # "NAME=MATERIAL": the scene's object NAME is of MATERIAL, one of field.materials; its
-    # surface is labelled so, and the gain fitted at each step makes its |Gamma| right, so
-    # the other classes are absolute (rfsdf.recon.calibration). None: materials are relative.
+    # surface is rendered as that material whatever the head says, so the gain fitted at each
+    # step makes its |Gamma| right and the other classes absolute (rfsdf.recon.calibration).
+    # None: materials are relative.
     reference: str | None = None
     # how near the reference's surface [m] a surface sample counts as the reference
     reference_distance_m: PositiveFloat = 0.01
