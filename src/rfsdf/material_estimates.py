@@ -114,18 +114,28 @@ def _estimate(name: str, probabilities: torch.Tensor, area_m2: torch.Tensor, cla
                             observed_fraction, None if true is None else true.name, true_eps)
 
 
+def _observed_objects(scene, acquisition: Acquisition, spacing_m: float, max_samples: int, seed: int):
+    """Samples of ``scene``'s true surface and, per object, (its samples, those some view of
+    ``acquisition`` observes, the observed share of its area): (samples, [(mine, seen, fraction)])."""
+    samples = scene.sample_surface(spacing_m, seed=seed, max_samples=max_samples, stratified=True)
+    observed = observed_mask(samples.points, samples.normals, acquisition, scene.sdf)
+    rows = []
+    for index in range(len(scene.objects)):
+        mine = samples.object_index == index
+        seen = mine & observed
+        fraction = float(samples.area_m2[seen].sum() / samples.area_m2[mine].sum()) if bool(mine.any()) else 0.0
+        rows.append((mine, seen, fraction))
+    return samples, rows
+
+
 def object_materials(field, scene, acquisition: Acquisition, *, spacing_m: float = 0.002,
                      max_samples: int = 40_000, seed: int = 0) -> list[MaterialEstimate]:
     """One estimate per object of ``scene``, from the field's head on the object's true
     surface where some view of ``acquisition`` observes it (all of it when none does)."""
-    samples = scene.sample_surface(spacing_m, seed=seed, max_samples=max_samples, stratified=True)
-    observed = observed_mask(samples.points, samples.normals, acquisition, scene.sdf)
+    samples, rows = _observed_objects(scene, acquisition, spacing_m, max_samples, seed)
     estimates = []
-    for index, obj in enumerate(scene.objects):
-        mine = samples.object_index == index
-        seen = mine & observed
+    for obj, (mine, seen, fraction) in zip(scene.objects, rows):
         area = samples.area_m2
-        fraction = float(area[seen].sum() / area[mine].sum()) if bool(mine.any()) else 0.0
         use = seen if bool(seen.any()) else mine
         estimates.append(_estimate(obj.name, _probabilities(field, samples.points[use]), area[use], field.materials,
                                    acquisition.center_frequency_hz, fraction, obj.material))
@@ -219,10 +229,8 @@ def scene_reference(scene, calibration, acquisition: Acquisition, *, source: str
     if name not in names:
         raise RfsdfError(f"{source}: scene {scene.name!r} has no object {name!r} (it has {', '.join(names)})")
     index = names.index(name)
-    samples = scene.sample_surface(spacing_m, seed=0, max_samples=max_samples, stratified=True)
-    mine = samples.object_index == index
-    seen = mine & observed_mask(samples.points, samples.normals, acquisition, scene.sdf)
-    fraction = float(samples.area_m2[seen].sum() / samples.area_m2[mine].sum()) if bool(mine.any()) else 0.0
+    _, rows = _observed_objects(scene, acquisition, spacing_m, max_samples, seed=0)
+    _, _, fraction = rows[index]
     if fraction == 0:
         raise RfsdfError(f"{source}: object {name!r} is observed by no view (it faces away from every view, "
                          "or another object shadows it): it cannot calibrate")
