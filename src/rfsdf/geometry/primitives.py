@@ -17,7 +17,7 @@ __all__ = ["Sphere", "Box", "HalfSpace", "Cylinder", "CappedCylinder", "Torus", 
 def _positive(value, name: str):
     """``value`` when it is a positive finite number [m]: a float, or a 0-d tensor kept as it
     is (a fitted parameter stays differentiable, ``rfsdf.recon.primitive``)."""
-    number = float(value)
+    number = float(value.detach() if isinstance(value, torch.Tensor) else value)
     if not (math.isfinite(number) and number > 0):
         raise ValueError(f"{name} must be a positive finite number [m], got {number}")
     return value if isinstance(value, torch.Tensor) else number
