@@ -29,7 +29,7 @@ from ..scene import build_shape
 from ..scene_model import SceneModel
 from .losses import amplitude_loss
 from .render import CoherentRenderer
-from .sampling import cell_voxels, data_voxel_probabilities, pooled_amplitude, sample_data_voxels
+from .sampling import data_batch, data_voxel_probabilities, pooled_amplitude
 from .trainer import Problem
 
 __all__ = ["PrimitiveField", "PrimitiveFit", "fit_primitive"]
@@ -103,12 +103,12 @@ class PrimitiveFit:
 
 
 def fit_primitive(problem: Problem, model: SceneModel, *, steps: int = 150, lr: float = 5e-4,
-                  cell_voxels_start: int = 4, cell_voxels_end: int = 1, data_batch: int = 4096,
+                  cell_voxels_start: int = 4, cell_voxels_end: int = 1, voxels_per_step: int = 4096,
                   views_per_step: int = 6, refresh_every: int = 1, data_focus: float = 0.5, seed: int = 0,
                   device="cpu", progress: bool = False) -> PrimitiveFit:
     """Fit ``model``'s free parameters to ``problem``'s data (module docstring): Adam at
     ``lr`` [m per step, about] for ``steps``, each on ``views_per_step`` random views and
-    about ``data_batch`` voxels in cubes shrinking from ``cell_voxels_start`` to
+    about ``voxels_per_step`` voxels in cubes shrinking from ``cell_voxels_start`` to
     ``cell_voxels_end`` voxels per edge; new surface samples every ``refresh_every`` steps."""
     clock = time.perf_counter()
     generator = torch.Generator().manual_seed(seed)
@@ -126,13 +126,12 @@ def fit_primitive(problem: Problem, model: SceneModel, *, steps: int = 150, lr: 
             renderer.refresh(field.sdf, values, generator)
         fraction = step / max(steps - 1, 1)
         size = round(cell_voxels_start + fraction * (cell_voxels_end - cell_voxels_start))
-        views = torch.randperm(renderer.num_views, generator=generator)[:views_per_step].sort().values.to(device)
-        corners = sample_data_voxels(probabilities, max(1, data_batch // size**3), generator)
-        voxels = cell_voxels(corners, problem.grid.shape, size).flatten().to(device)
+        views, cells, voxels = data_batch(renderer.num_views, views_per_step, probabilities, voxels_per_step,
+                                          problem.grid.shape, size, generator, device)
         predicted = renderer(field, views, voxels, probabilities=field.material(renderer.candidates.anchors))
         target = observed[views][:, voxels]
         if size > 1:
-            predicted, target = pooled_amplitude(predicted, len(corners)), pooled_amplitude(target, len(corners))
+            predicted, target = pooled_amplitude(predicted, cells), pooled_amplitude(target, cells)
         loss = amplitude_loss(predicted, target)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()

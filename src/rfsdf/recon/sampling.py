@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["data_voxel_probabilities", "sample_data_voxels", "cell_voxels", "pooled_amplitude", "eikonal_points"]
+__all__ = ["data_voxel_probabilities", "sample_data_voxels", "cell_voxels", "data_batch", "pooled_amplitude",
+           "eikonal_points"]
 
 
 def data_voxel_probabilities(observed_amplitude: torch.Tensor, focus: float) -> torch.Tensor:
@@ -34,6 +35,16 @@ def cell_voxels(corner_index: torch.Tensor, grid_shape, size: int) -> torch.Tens
     offsets = torch.stack(torch.meshgrid(*[torch.arange(size, device=corner.device)] * 3, indexing="ij"), -1)
     cells = corner[:, None] + offsets.reshape(1, -1, 3)
     return (cells[..., 0] * ny + cells[..., 1]) * nz + cells[..., 2]
+
+
+def data_batch(num_views: int, views_per_step: int, probabilities: torch.Tensor, voxels_per_step: int,
+               grid_shape, size: int, generator: torch.Generator, device) -> tuple[torch.Tensor, int, torch.Tensor]:
+    """One step's data: ``views_per_step`` random views (sorted), and cubes of ``size``
+    voxels per edge, about ``voxels_per_step`` voxels in all, their corners drawn by
+    ``probabilities``: (views, number of cubes, flat voxel indices cube by cube)."""
+    views = torch.randperm(num_views, generator=generator)[:views_per_step].sort().values.to(device)
+    corners = sample_data_voxels(probabilities, max(1, voxels_per_step // size**3), generator)
+    return views, len(corners), cell_voxels(corners, grid_shape, size).flatten().to(device)
 
 
 def pooled_amplitude(image: torch.Tensor, cells: int) -> torch.Tensor:

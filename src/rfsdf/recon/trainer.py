@@ -35,7 +35,7 @@ from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write
 from .config import ReconConfig
 from .losses import DATA_LOSSES, eikonal_loss, material_cross_entropy, material_entropy
 from .render import RENDERERS
-from .sampling import cell_voxels, data_voxel_probabilities, eikonal_points, pooled_amplitude, sample_data_voxels
+from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
 from .surface import SurfaceCandidates
 from .warm_start import detection_threshold, excluded_voxels, warm_start
@@ -264,11 +264,10 @@ class Trainer:
         (the first ``train.geometry_delay_steps``) no graph is built through it: those steps
         fit Gamma only and cost less."""
         cfg = self.config
-        views = torch.randperm(self.renderer.num_views, generator=self.generator)[:cfg.sampling.views_per_step]
-        views = views.sort().values.to(self.device)
         size = self.cell_size()
-        corners = sample_data_voxels(self.probabilities, max(1, cfg.sampling.data_batch // size**3), self.generator)
-        voxels = cell_voxels(corners, self.problem.grid.shape, size).flatten().to(self.device)
+        views, cells, voxels = data_batch(self.renderer.num_views, cfg.sampling.views_per_step, self.probabilities,
+                                          cfg.sampling.data_batch, self.problem.grid.shape, size, self.generator,
+                                          self.device)
         frozen = self.step < cfg.train.geometry_delay_steps
         probabilities = self.surface_materials(geometry=not frozen)
         predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities)
@@ -277,7 +276,7 @@ class Trainer:
         if known_gain:  # into the units of the observed images (peak 1)
             predicted = predicted * (self.problem.gain / self.renderer.observed_peak)
         if size > 1:
-            predicted, observed = pooled_amplitude(predicted, len(corners)), pooled_amplitude(observed, len(corners))
+            predicted, observed = pooled_amplitude(predicted, cells), pooled_amplitude(observed, cells)
         data = self.data_loss(predicted, observed, fit_gain=not known_gain)
         terms = {"data": data}
         if probabilities is not None:
