@@ -49,12 +49,14 @@ def test_quick_demo_runs_end_to_end_and_resumes(quick_demo):
         assert sum(estimate["probabilities"].values()) == pytest.approx(1.0, abs=1e-6)
         assert estimate["predicted"] in estimate["probabilities"] and 0 <= estimate["observed_fraction"] <= 1
     assert {o["true"] for o in materials["objects"]} == {"metal", "wood", "glass", "concrete", "plasterboard"}
-    assert len(materials["components"]) >= 1 and materials["calibration"].startswith("relative")
+    # the default scene names its metal ball as the calibration reference
+    assert len(materials["components"]) >= 1 and materials["calibration"].startswith("reference metal_ball=metal")
+    assert [o["name"] for o in materials["objects"] if o["reference"]] == ["metal_ball"]
     vertices = trimesh.load(out / "neural.ply", force="mesh").metadata["_ply_raw"]["vertex"]["data"]
-    assert {"material_class", "material_probability", "eps_real"} <= set(vertices.dtype.names)
-    assert vertices["material_class"].max() < 5 and (vertices["material_probability"] >= 0.2 - 1e-6).all()
+    assert {"material_class", "reflectivity", "eps_real"} <= set(vertices.dtype.names)
+    assert vertices["material_class"].max() < 5 and ((vertices["reflectivity"] >= 0) & (vertices["reflectivity"] <= 1)).all()
     table = runner.invoke(main, ["materials", str(out)])
-    assert table.exit_code == 0 and "concrete_ring" in table.output and "calibration: relative" in table.output
+    assert table.exit_code == 0 and "concrete_ring" in table.output and "calibration: reference" in table.output
     log = result.stderr  # not a terminal, as in a batch job's log: no redraws, few lines
     assert "\r" not in log and log.count("\n") < 200, log[:2000]
     log_lines = (out / "run" / "log.csv").read_text().count("\n")

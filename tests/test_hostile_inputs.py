@@ -379,6 +379,12 @@ def test_a_calibration_reference_is_checked_before_any_work(tmp_path, tiny_files
     assert "object 'core' is observed by no view" in line, line  # inside the wooden shell
     line = _refused(["demo", "--quick", "--out", run, "--no-materials", "--reference", "metal_ball=metal"], tmp_path)
     assert "calibration.reference: 'metal' is not one of field.materials []" in line, line
+    line = _refused(["demo", "--quick", "--out", run, "--relative", "--reference", "metal_ball=metal"], tmp_path)
+    assert "--relative and --reference exclude each other" in line, line
+    declared = tmp_path / "declared.toml"
+    declared.write_text(scene.read_text().replace('name = "hidden"\n', 'name = "hidden"\ncalibration_reference = "ball"\n'))
+    line = _refused(["demo", "--quick", "--out", run, "--scene", declared], tmp_path)
+    assert f"{declared}: calibration_reference: no object 'ball' (the objects are shell, core)" in line, line
 
 
 def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):

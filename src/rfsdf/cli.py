@@ -492,11 +492,14 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--no-materials", is_flag=True,
               help="Fit a free reflectivity instead of the material head (no material estimates).")
 @click.option("--reference", default=None, metavar="NAME=MATERIAL",
-              help="Calibrate the gain with the scene's object NAME, known to be MATERIAL (e.g. metal_ball=metal).")
+              help="Calibrate the gain with the scene's object NAME, known to be MATERIAL (e.g. metal_ball=metal); "
+                   "default: the scene's calibration_reference, if it names one.")
+@click.option("--relative", is_flag=True,
+              help="No calibration reference: one gain fitted per step, materials only relative to each other.")
 @_device_option()
 @_one_line_errors
 def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
-         device: str):
+         relative: bool, device: str):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
@@ -508,7 +511,10 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
     from .demo import QUICK, DemoSettings, metrics_table, run_demo
     from .config import merge_tables
 
-    settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name)
+    if relative and reference is not None:
+        raise click.UsageError("--relative and --reference exclude each other")
+    settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name,
+                                   relative=relative)
     if no_materials:
         settings = dataclasses.replace(settings, recon=merge_tables(settings.recon, {"field": {"materials": []}}))
     if reference is not None:

@@ -79,6 +79,8 @@ class DemoSettings:
     # each step and materials are relative: with the gain known, the neural surface's dimmer
     # glints made the head pick brighter classes (tests/test_material_fit.py)
     known_gain: bool = False
+    # leave out the scene's calibration_reference (one gain fitted per step, relative materials)
+    relative: bool = False
     mesh_resolution: int = 128
     metric_samples: int = 50_000
 
@@ -169,6 +171,19 @@ def load_scene_and_radar(scene_name: str, radar_name: str) -> SceneAndRadar:
     return SceneAndRadar(scene, radar)
 
 
+def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
+    """``config`` calibrated by the scene's ``calibration_reference`` (rendered as its own
+    material), unless a reference is already set, the settings ask for relative materials,
+    or there is no material head."""
+    name = scene.spec.calibration_reference
+    if name is None or settings.relative or config.calibration.reference is not None or not config.field.materials:
+        return config
+    material = next(o.material.name for o in scene.objects if o.name == name)
+    merged = config.model_dump()
+    merged["calibration"]["reference"] = f"{name}={material}"
+    return validate(ReconConfig, merged, f"{settings.scene}: calibration_reference")
+
+
 def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
              log: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
     """Run the pipeline into folder ``out`` with ``settings`` (None: the demo's defaults);
@@ -182,7 +197,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     device = resolve_device(device)
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
-    config = validate(ReconConfig, settings.recon, "recon").on_device(device)
+    config = _with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
     _claim(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()

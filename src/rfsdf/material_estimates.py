@@ -1,15 +1,21 @@
 """What a fitted material head says each surface is made of, per object of a scene (when
 the truth is known) and per connected component of the reconstruction (always).
 
-An estimate is never a bare class: it is the class probabilities averaged over the surface
-some view observes (area-weighted), the class they favour, the real permittivity eps' with
-an interval, and the observed share of that surface. eps' of a point is the mean of the
-dielectric classes' eps' at the data's centre frequency weighted by their probabilities
-(renormalised over the dielectrics: metal has no finite eps'); the interval is the 10th to
-90th percentile of that per-point value over the observed surface (area-weighted), so it
-says how much the surface agrees with itself, not a confidence interval of the data. An
-object whose observed share is below ``MIN_OBSERVED_FRACTION`` is reported but left out of
-the accuracy: what no view sees, no data can tell.
+An estimate is never a bare class. The renderer reflects a point by the head's mixture
+sum_k p_k Gamma_k, so what the data fitted at a point is that mixture's magnitude, its
+**reflectivity** at normal incidence (``point_reflectivity``), not the class the head
+favours: a point 52 % metal and 45 % wood reflects 0.60, and on the demo the argmax of such
+mixtures read every dielectric as wood where their reflectivities, calibrated by a metal
+reference, put glass and plasterboard in their own classes. So a surface's estimate is its
+reflectivity (area-weighted over the surface some view observes) with the 10th to 90th
+percentile of the per-point values; the ``predicted`` class is the catalogue class nearest
+in |Gamma| at normal incidence, and eps' the lossless permittivity with that reflectivity,
+((1 + |Gamma|) / (1 - |Gamma|))^2, with its interval from the percentiles (how much the
+surface agrees with itself, not a confidence interval of the data). The head's class
+probabilities are reported beside it. Classes are absolute only where the gain is (a
+reference object, a known gain); with a gain fitted at each step they are relative, and the
+calibration line says so. An object whose observed share is below ``MIN_OBSERVED_FRACTION``
+is reported but left out of the accuracy: what no view sees, no data can tell.
 """
 
 from __future__ import annotations
@@ -22,26 +28,29 @@ import torch
 import trimesh
 
 from .config import validate
-from .materials import get_material
+from .materials import get_material, mixture_fresnel
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
-           "object_materials", "component_materials", "class_accuracy", "point_eps_real", "paint_mesh",
+           "object_materials", "component_materials", "class_accuracy", "class_reflectivities", "point_reflectivity",
+           "reflectivity_class", "eps_of_reflectivity", "paint_mesh",
            "check_materials_dict", "calibration_text", "scene_reference", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 _CHUNK = 1 << 15
 _INTERVAL = (0.1, 0.9)  # the percentiles of per-point eps' that make the interval
 _COMPONENT_SAMPLES = 4000  # surface samples per connected component of the reconstruction
+_MAX_REFLECTIVITY = 0.999  # eps' of a reflectivity is capped there (1 is metal: no finite eps')
 
 
 @dataclass(frozen=True)
 class MaterialEstimate:
-    """One surface's material: ``probabilities`` per class (area-weighted over its observed
-    part), the ``predicted`` class, ``eps_real`` (None when metal is predicted) and its
-    ``eps_real_interval``, ``observed_fraction`` of its area, and for
-    a scene's object its ``true`` material and that material's ``true_eps_real``."""
+    """One surface's material: the head's ``probabilities`` per class (area-weighted over its
+    observed part), its ``reflectivity`` |Gamma| at normal incidence with the
+    ``reflectivity_interval``, the ``predicted`` class (nearest in |Gamma|), ``eps_real``
+    (None when metal is predicted) and its ``eps_real_interval``, ``observed_fraction`` of its
+    area, and for a scene's object its ``true`` material and that material's ``true_eps_real``."""
 
     name: str
     predicted: str
@@ -49,6 +58,8 @@ class MaterialEstimate:
     eps_real: float | None
     eps_real_interval: tuple[float, float] | None
     observed_fraction: float
+    reflectivity: float | None = None  # None only in metrics.json files written before it was
+    reflectivity_interval: tuple[float, float] | None = None
     true: str | None = None
     true_eps_real: float | None = None
     reference: bool = False  # the calibration reference: rendered as its stated material, not counted
@@ -87,31 +98,52 @@ def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, quantiles) -> l
     return [float(values[order][min(np.searchsorted(cumulative, q), len(values) - 1)]) for q in quantiles]
 
 
-def point_eps_real(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
-    """(Q,) eps' of each point: the dielectric classes' eps' at ``frequency_hz`` weighted by
-    their probabilities (Q, K), renormalised over the dielectrics; NaN with no dielectric class."""
-    eps = np.array([get_material(c).permittivity(frequency_hz).real for c in classes])
-    dielectric = np.isfinite(eps)
-    p = probabilities.detach().cpu().double().numpy()[:, dielectric]
-    if not dielectric.any():
-        return np.full(len(p), np.nan)
-    return (p * eps[dielectric]).sum(1) / np.maximum(p.sum(1), 1e-12)
+def class_reflectivities(classes: tuple[str, ...], frequency_hz: float) -> torch.Tensor:
+    """(K,) |Gamma| of each class at normal incidence at ``frequency_hz`` (unpolarised)."""
+    eps = torch.tensor([complex(get_material(c).permittivity(frequency_hz)) for c in classes], dtype=torch.complex128)
+    return mixture_fresnel(torch.ones(len(classes), dtype=torch.float64), torch.eye(len(classes)), eps).abs()
+
+
+def point_reflectivity(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """(Q,) |sum_k p_k Gamma_k| at normal incidence: the reflectivity the renderer gives
+    points whose class probabilities are ``probabilities`` (Q, K)."""
+    eps = torch.tensor([complex(get_material(c).permittivity(frequency_hz)) for c in classes], dtype=torch.complex128)
+    cos = torch.ones(len(probabilities), dtype=torch.float64)
+    return mixture_fresnel(cos, probabilities.detach().cpu().double(), eps).abs().numpy()
+
+
+def reflectivity_class(reflectivity, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """The class of ``classes`` whose |Gamma| at normal incidence is nearest to each
+    ``reflectivity`` (scalar or array): an array of class names, same shape."""
+    levels = class_reflectivities(classes, frequency_hz).numpy()
+    nearest = np.abs(np.asarray(reflectivity, dtype=float)[..., None] - levels).argmin(-1)
+    return np.asarray(classes)[nearest]
+
+
+def eps_of_reflectivity(reflectivity) -> np.ndarray:
+    """The eps' of a lossless dielectric whose |Gamma| at normal incidence is ``reflectivity``:
+    ((1 + r) / (1 - r))^2, r capped below 1 (metal)."""
+    r = np.clip(np.asarray(reflectivity, dtype=float), 0.0, _MAX_REFLECTIVITY)
+    return ((1 + r) / (1 - r)) ** 2
 
 
 def _estimate(name: str, probabilities: torch.Tensor, area_m2: torch.Tensor, classes: tuple[str, ...],
               frequency_hz: float, observed_fraction: float, true=None) -> MaterialEstimate:
     """The estimate of one surface from the probabilities (Q, K) at its samples (areas (Q,))."""
-    weights = area_m2.double() / area_m2.double().sum()
-    mean = (weights[:, None] * probabilities).sum(0)
-    predicted = classes[int(mean.argmax())]
-    eps_real = interval = None
-    per_point = point_eps_real(probabilities, classes, frequency_hz)
-    if not get_material(predicted).pec and np.isfinite(per_point).all():
-        eps_real = float((weights.numpy() * per_point).sum())
-        interval = tuple(_weighted_quantiles(per_point, weights.numpy(), _INTERVAL))
+    weights = (area_m2.double() / area_m2.double().sum()).numpy()
+    mean = (torch.as_tensor(weights)[:, None] * probabilities).sum(0)
+    per_point = point_reflectivity(probabilities, classes, frequency_hz)
+    reflectivity = float((weights * per_point).sum())
+    interval = tuple(_weighted_quantiles(per_point, weights, _INTERVAL))
+    predicted = str(reflectivity_class(reflectivity, classes, frequency_hz))
+    eps_real = eps_interval = None
+    if not get_material(predicted).pec:
+        eps_real = float(eps_of_reflectivity(reflectivity))
+        eps_interval = tuple(float(e) for e in eps_of_reflectivity(interval))
     true_eps = None if true is None or true.pec else float(true.permittivity(frequency_hz).real)
-    return MaterialEstimate(name, predicted, {c: float(v) for c, v in zip(classes, mean)}, eps_real, interval,
-                            observed_fraction, None if true is None else true.name, true_eps)
+    return MaterialEstimate(name, predicted, {c: float(v) for c, v in zip(classes, mean)}, eps_real, eps_interval,
+                            observed_fraction, reflectivity, interval,
+                            None if true is None else true.name, true_eps)
 
 
 def _observed_objects(scene, acquisition: Acquisition, spacing_m: float, max_samples: int, seed: int):
@@ -182,16 +214,18 @@ def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *
 
 def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float) -> trimesh.Trimesh:
     """``mesh`` with per-vertex properties that PLY files keep: ``material_class`` (int32 index
-    into ``field.materials``, in the run's config.toml), ``material_probability`` (float32,
-    that class's) and ``eps_real`` (float32 at ``frequency_hz``; NaN where metal leads)."""
-    probabilities = _probabilities(field, torch.as_tensor(np.asarray(mesh.vertices)))
-    best, index = probabilities.max(1)
-    eps = point_eps_real(probabilities, field.materials, frequency_hz)
-    pec = np.array([get_material(c).pec for c in field.materials])[index.numpy()]
+    into ``field.materials``, in the run's config.toml: the class nearest the vertex's
+    reflectivity), ``reflectivity`` (float32, |Gamma| at normal incidence at ``frequency_hz``)
+    and ``eps_real`` (float32; NaN where metal is nearest)."""
+    classes = field.materials
+    reflectivity = point_reflectivity(_probabilities(field, torch.as_tensor(np.asarray(mesh.vertices))), classes,
+                                      frequency_hz)
+    names = reflectivity_class(reflectivity, classes, frequency_hz)
+    index = np.array([classes.index(n) for n in names], dtype=np.int32)
+    pec = np.array([get_material(c).pec for c in classes])[index]
     painted = mesh.copy()
-    painted.vertex_attributes.update(material_class=index.numpy().astype(np.int32),
-                                     material_probability=best.numpy().astype(np.float32),
-                                     eps_real=np.where(pec, np.nan, eps).astype(np.float32))
+    painted.vertex_attributes.update(material_class=index, reflectivity=reflectivity.astype(np.float32),
+                                     eps_real=np.where(pec, np.nan, eps_of_reflectivity(reflectivity)).astype(np.float32))
     return painted
 
 
@@ -260,12 +294,14 @@ def materials_table(materials: dict) -> str:
         truth = "" if e.get("true") is None else f"{e['true']:<13}"
         if e.get("reference"):
             return f"  {e['name']:<26}{truth}(the calibration reference, rendered as stated)"
-        best = max(e["probabilities"].values())
-        return f"  {e['name']:<26}{truth}{e['predicted']:<13}{best:>6.2f}  {eps:<22}{e['observed_fraction']:>6.0%}"
+        reflectivity = "-" if e.get("reflectivity") is None else f"{e['reflectivity']:.2f}"
+        return (f"  {e['name']:<26}{truth}{e['predicted']:<13}{reflectivity:>6}  {eps:<22}"
+                f"{e['observed_fraction']:>6.0%}")
 
     head = f"  {'':<26}" + ("true         " if materials["objects"] else "")
-    lines = ["materials (the fit's material head; eps' [10-90 % of the surface]; observed share):",
-             head + f"{'predicted':<13}{'p':>6}  {'eps_real':<22}{'seen':>6}"]
+    lines = ["materials (the class nearest the fitted |Gamma| at normal incidence; eps' [10-90 % of the surface]; "
+             "observed share):",
+             head + f"{'predicted':<13}{'|G|':>6}  {'eps_real':<22}{'seen':>6}"]
     lines += [line(e) for e in materials["objects"]] + [line(e) for e in materials["components"]]
     accuracy = materials["accuracy"]
     lines.append(f"  accuracy {'-' if accuracy is None else f'{accuracy:.0%}'} over objects at least "

@@ -166,6 +166,9 @@ class SceneSpec(StrictModel):
     bounds: BoundsSpec
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = Field(min_length=1)
+    # the object a radar engineer would calibrate the gain with (its material is known): the
+    # demo renders it as its material and reads the other materials absolutely
+    calibration_reference: str | None = None
 
     @field_validator("objects")
     @classmethod
@@ -175,6 +178,14 @@ class SceneSpec(StrictModel):
         if duplicated:
             raise ValueError(f"object names must be unique, repeated: {', '.join(duplicated)}")
         return objects
+
+    @field_validator("calibration_reference")
+    @classmethod
+    def _reference_is_an_object(cls, name, info):
+        names = [o.name for o in info.data.get("objects", [])]
+        if name is not None and names and name not in names:
+            raise ValueError(f"no object {name!r} (the objects are {', '.join(names)})")
+        return name
 
     @model_validator(mode="after")
     def _known_materials(self):
