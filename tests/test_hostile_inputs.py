@@ -415,4 +415,6 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     assert "bounds: the model's box" in _refused(args, tmp_path)
     model.write_text(head + ball)
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--scene-model", model], tmp_path)
-    assert "--scene-model: only with --model primitive" in line, line
+    assert "--scene-model and --fit-to: only with --model primitive" in line, line
+    line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--fit-to", "profiles"], tmp_path)
+    assert "--scene-model and --fit-to: only with --model primitive" in line, line

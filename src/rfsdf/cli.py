@@ -301,11 +301,14 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,
               help="With --model primitive and no --scene-model: start from --scene with every length free and moved "
                    "by up to this much [m] (seeded).")
+@click.option("--fit-to", "fit_to", type=click.Choice(["images", "profiles"]), default="images", show_default=True,
+              help="With --model primitive: the data term. images: the coherent renderer on the image grid (small "
+                   "scenes); profiles: each view's range profile, rendered by ray votes (rooms).")
 @_device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
-                    model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
+                    model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float, fit_to: str,
                     device: str | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
@@ -321,11 +324,11 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
             raise click.UsageError(f"{', '.join(given)}: not for --model primitive")
         if scene_model_path is None and scene_name is None:
             raise click.UsageError("--model primitive needs --scene-model, or --scene to start from its truth")
-        _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset,
+        _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset, fit_to,
                                _device(device or "auto"))
         return
-    if scene_model_path is not None:
-        raise click.UsageError("--scene-model: only with --model primitive")
+    if scene_model_path is not None or fit_to != "images":
+        raise click.UsageError("--scene-model and --fit-to: only with --model primitive")
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -378,10 +381,10 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
 
 def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: float | None, model_path: Path | None,
-                           scene_name: str | None, steps: int, start_offset: float, device) -> None:
+                           scene_name: str | None, steps: int, start_offset: float, fit_to: str, device) -> None:
     """``reconstruct --model primitive``: fit the model (``model_path``, else the scene
-    ``scene_name`` with every length free, ``start_offset`` off), write its parameters, the
-    fitted scene file and its mesh into ``out``."""
+    ``scene_name`` with every length free, ``start_offset`` off) to the images or the range
+    profiles (``fit_to``), write its parameters, the fitted scene file and its mesh into ``out``."""
     import tomli_w
 
     from .atomic import atomic_path
@@ -391,6 +394,7 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     from .radar import read_measurements
     from .recon import Problem
     from .recon.primitive import fit_primitive
+    from .recon.range_profile import fit_primitive_profiles
     from .scene import Scene, load_scene
     from .scene_model import SceneModel, load_scene_model
 
@@ -404,8 +408,11 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     if any(lo >= mu or ml >= up for lo, up, ml, mu in zip(lower, upper, model_lower, model_upper)):
         raise ValueError(f"{model.source}: bounds: the model's box {list(model_lower)} .. {list(model_upper)} does not "
                          f"overlap the data's {list(lower)} .. {list(upper)}")
-    grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
-    fit = fit_primitive(Problem(measurements, grid, str(data)), model, steps=steps, device=device, progress=True)
+    if fit_to == "profiles":
+        fit = fit_primitive_profiles(measurements, model, steps=steps, progress=True)
+    else:
+        grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
+        fit = fit_primitive(Problem(measurements, grid, str(data)), model, steps=steps, device=device, progress=True)
     fitted = Scene(model.fitted_spec(fit.field.fitted()), model.base_dir)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "primitive.json") as tmp:

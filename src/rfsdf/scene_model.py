@@ -30,6 +30,9 @@ __all__ = ["FreeParameter", "SceneModel", "load_scene_model", "POSITION_FIELDS",
 
 POSITION_FIELDS = ("center_m", "point_m", "start_m", "end_m", "translate_m")  # may move either way
 SIZE_FIELDS = ("half_extents_m", "radius_m", "height_m", "major_radius_m", "minor_radius_m")  # stay positive
+# a free size's lower bound is at least this [m], whatever its bounds_m say: a fitted window pane
+# 2 cm thick reached a negative half extent on l-room and stopped the fit
+MIN_SIZE_M = 1e-4
 _KEYS = {"start", "free", "bounds_m"}
 
 
@@ -62,8 +65,9 @@ def _components(value, where: str) -> tuple[list[float], bool]:
     return [float(v) for v in items], not isinstance(value, list)
 
 
-def _parameter(table: dict, where: str) -> tuple[object, FreeParameter | None]:
-    """The start value to put in the scene file and the FreeParameter (None when held)."""
+def _parameter(table: dict, where: str, size: bool) -> tuple[object, FreeParameter | None]:
+    """The start value to put in the scene file and the FreeParameter (None when held); a
+    ``size`` (a SIZE_FIELDS parameter) keeps its lower bounds at least ``MIN_SIZE_M``."""
     unknown = set(table) - _KEYS
     if unknown:
         raise RfsdfError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} (a parameter table has "
@@ -88,6 +92,8 @@ def _parameter(table: dict, where: str) -> tuple[object, FreeParameter | None]:
         lower, upper = [s - margin[0] for s in start], [s + margin[0] for s in start]
     if not len(lower) == len(upper) == len(start):
         raise RfsdfError(f"{where}.bounds_m: start has {len(start)} component(s), its bounds another count")
+    if size:
+        lower = [max(lo, MIN_SIZE_M) for lo in lower]
     if any(not lo <= s <= hi for lo, s, hi in zip(lower, start, upper)):
         raise RfsdfError(f"{where}.start: {table['start']!r} is outside its bounds {lower} .. {upper}")
     value = start[0] if scalar else start
@@ -98,7 +104,7 @@ def _substitute(node, path: tuple, where: str, found: list) -> object:
     """``node`` with every parameter table replaced by its start; the free ones appended to
     ``found`` as (path, FreeParameter)."""
     if _is_parameter_table(node):
-        value, parameter = _parameter(node, where)
+        value, parameter = _parameter(node, where, bool(path) and path[-1] in SIZE_FIELDS)
         if parameter is not None:
             found.append((path, parameter))
         return value

@@ -50,17 +50,23 @@ class PrimitiveField(torch.nn.Module):
         self.materials = tuple(dict.fromkeys(names))  # the classes, as a material head's
         self._class = torch.tensor([self.materials.index(name) for name in names])
 
-    def object_sdfs(self) -> list:
-        """Each object's SDF at the current parameter values."""
+    def object_sdfs(self, *, detach: bool = False) -> list:
+        """Each object's SDF at the current parameter values (held constant with ``detach``)."""
         overrides = {}
         for parameter, value in zip(self.model.free, self.values):
             node, field = self.model.node(parameter.path)
-            overrides[(id(node), field)] = value
+            overrides[(id(node), field)] = value.detach().clone() if detach else value
         return [build_shape(o.shape, self.model.base_dir, overrides) for o in self.model.spec.objects]
 
     def sdf(self, points: torch.Tensor) -> torch.Tensor:
         """The model's SDF (N,) [m] at points (N, 3), differentiable in the free parameters."""
         return torch.stack([sdf(points) for sdf in self.object_sdfs()]).min(0).values
+
+    def frozen_sdf(self):
+        """The SDF at the current values, detached and built once (for sphere tracing,
+        which calls it a few hundred times a step): points (N, 3) -> (N,) [m]."""
+        sdfs = self.object_sdfs(detach=True)
+        return lambda points: torch.stack([sdf(points) for sdf in sdfs]).min(0).values
 
     def material(self, points: torch.Tensor) -> torch.Tensor:
         """(N, K) class probabilities: certain of the nearest object's material."""
