@@ -81,7 +81,7 @@ def test_the_demo_report_holds_every_section_and_no_network_reference(quick_demo
                  "observed", "range resolution c/2B = 37.5 mm", "lambda R / 2D = 11.9 mm at R = 0.75 m", "Tx", "Rx"):
         assert name in page, name
     assert page.count('class="plotly-graph-div"') == 5  # errors of two meshes, materials, observed, views
-    assert "coloured by the material head's class" in page and "accuracy" in page
+    assert "coloured by the class nearest its fitted |Gamma|" in page and "accuracy" in page
     assert re.search(r"<(script|link|img)[^>]*(src|href)=\"?https?:", page) is None  # all inline: no network
 
 

@@ -34,7 +34,7 @@ from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
            "object_materials", "component_materials", "class_accuracy", "class_reflectivities", "point_reflectivity",
-           "reflectivity_class", "eps_of_reflectivity", "paint_mesh",
+           "reflectivity_class", "point_classes", "eps_of_reflectivity", "paint_mesh",
            "check_materials_dict", "calibration_text", "scene_reference", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
@@ -118,6 +118,13 @@ def reflectivity_class(reflectivity, classes: tuple[str, ...], frequency_hz: flo
     levels = class_reflectivities(classes, frequency_hz).numpy()
     nearest = np.abs(np.asarray(reflectivity, dtype=float)[..., None] - levels).argmin(-1)
     return np.asarray(classes)[nearest]
+
+
+def point_classes(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """(Q,) int index into ``classes`` of the class nearest each point's reflectivity
+    (probabilities (Q, K)): the per-point readout of the tables."""
+    names = reflectivity_class(point_reflectivity(probabilities, classes, frequency_hz), classes, frequency_hz)
+    return np.array([classes.index(n) for n in names], dtype=np.int32)
 
 
 def eps_of_reflectivity(reflectivity) -> np.ndarray:
@@ -218,10 +225,9 @@ def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float) -> trimesh.Tri
     reflectivity), ``reflectivity`` (float32, |Gamma| at normal incidence at ``frequency_hz``)
     and ``eps_real`` (float32; NaN where metal is nearest)."""
     classes = field.materials
-    reflectivity = point_reflectivity(_probabilities(field, torch.as_tensor(np.asarray(mesh.vertices))), classes,
-                                      frequency_hz)
-    names = reflectivity_class(reflectivity, classes, frequency_hz)
-    index = np.array([classes.index(n) for n in names], dtype=np.int32)
+    probabilities = _probabilities(field, torch.as_tensor(np.asarray(mesh.vertices)))
+    reflectivity = point_reflectivity(probabilities, classes, frequency_hz)
+    index = point_classes(probabilities, classes, frequency_hz)
     pec = np.array([get_material(c).pec for c in classes])[index]
     painted = mesh.copy()
     painted.vertex_attributes.update(material_class=index, reflectivity=reflectivity.astype(np.float32),

@@ -35,7 +35,7 @@ from .config import validate
 from .demo import SETTINGS_NAME, metrics_rows
 from .errors import RfsdfError
 from .limits import input_file
-from .material_estimates import check_materials_dict, materials_table
+from .material_estimates import check_materials_dict, materials_table, point_classes
 from .mesh import extract_mesh
 from .radar import load_radar, read_measurements
 from .radar.coverage import observed_mask
@@ -218,8 +218,9 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
                      f"true surface and the radar's {acquisition.shape[0]} views (Tx red, Rx blue)"),
     ]
     if materials is not None:
-        views.insert(1, material_figure(_load_mesh(folder / "neural.ply"), partial(_face_classes, field),
-                                        field.materials, "GeRaF reconstruction, coloured by the material head's class"))
+        classes = partial(_face_classes, field, frequency_hz=acquisition.center_frequency_hz)
+        views.insert(1, material_figure(_load_mesh(folder / "neural.ply"), classes, field.materials,
+                                        "GeRaF reconstruction, coloured by the class nearest its fitted |Gamma|"))
     sections = [
         Section("summary", "Scene and radar",
                 _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
@@ -237,12 +238,14 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     return f"rfsdf demo: scene {scene.name!r}, radar {radar.name!r}", sections
 
 
-def _face_classes(field, centres: np.ndarray) -> np.ndarray:
-    """(F,) the material head's most likely class at face centres (F, 3) [m]."""
+def _face_classes(field, centres: np.ndarray, *, frequency_hz: float) -> np.ndarray:
+    """(F,) at face centres (F, 3) [m], the index of the class nearest the reflectivity the
+    material head gives there (the materials table's readout)."""
     import torch
 
     with torch.no_grad():
-        return field.material(torch.tensor(np.asarray(centres), dtype=torch.float32)).argmax(1).numpy()
+        probabilities = field.material(torch.tensor(np.asarray(centres), dtype=torch.float32))
+    return point_classes(probabilities, field.materials, frequency_hz)
 
 
 def _run_sections(folder: Path) -> tuple[str, list[Section]]:
