@@ -125,3 +125,22 @@ def test_demo_refuses_bad_scene_and_radar_names_in_one_line(tmp_path):
         result = runner.invoke(main, ["demo", "--quick", option, name, "--out", str(tmp_path / "d")])
         assert result.exit_code == 2 and result.output.startswith("error: no-such-") and result.output.count("\n") == 1
         assert not (tmp_path / "d").exists()
+
+
+def test_the_demo_calibrates_by_the_scenes_reference_unless_told_otherwise():
+    """The default scene names its metal ball: the demo's config renders it as metal; not
+    with ``relative``, not over a reference already given, not without a material head."""
+    import dataclasses
+
+    from rfsdf.demo import DemoSettings, _with_scene_reference
+    from rfsdf.recon import ReconConfig
+    from rfsdf.scene import load_scene
+
+    scene, settings, config = load_scene("objects"), DemoSettings(), ReconConfig()
+    assert _with_scene_reference(config, scene, settings).calibration.reference == "metal_ball=metal"
+    assert _with_scene_reference(config, scene, dataclasses.replace(settings, relative=True)).calibration.reference is None
+    given = ReconConfig.model_validate({"calibration": {"reference": "glass_jar=glass"}})
+    assert _with_scene_reference(given, scene, settings).calibration.reference == "glass_jar=glass"
+    headless = ReconConfig.model_validate({"field": {"materials": []}})
+    assert _with_scene_reference(headless, scene, settings).calibration.reference is None
+    assert _with_scene_reference(config, load_scene("sphere"), settings).calibration.reference is None
