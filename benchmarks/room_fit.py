@@ -61,7 +61,7 @@ def main() -> None:
     parser.add_argument("--start-offset", type=float, default=0.15)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    out = args.out or Path(f"benchmarks/results/room-fit-{args.scene}.json")
+    out = args.out or Path(f"benchmarks/results/room-fit-{Path(args.scene).stem}.json")
     truth = load_scene(args.scene)
     if args.data is not None:
         data = read_measurements(args.data)
