@@ -19,3 +19,20 @@ def test_scene_show_bad_input_is_one_line(tmp_path):
     assert result.exit_code == 2
     assert result.output.strip().count("\n") == 0 and "bad.toml" in result.output
     assert "Traceback" not in result.output
+
+
+def test_version_names_the_package_and_the_checkouts_commit():
+    """`rfsdf --version`: the package version, and from a git checkout the commit it runs
+    (git describe, -dirty with uncommitted changes), so a result can be traced to its code."""
+    import subprocess
+    from pathlib import Path
+
+    from rfsdf import __version__
+
+    result = CliRunner().invoke(main, ["--version"])
+    assert result.exit_code == 0 and result.output.startswith(f"rfsdf {__version__}"), result.output
+    root = Path(__file__).resolve().parents[1]
+    head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
+                          text=True, check=False).stdout.strip()
+    if head:  # a checkout (CI clones one)
+        assert f"(commit {head}" in result.output, result.output

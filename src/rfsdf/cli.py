@@ -79,8 +79,35 @@ class _OneLineGroup(click.Group):
             sys.exit(2)
 
 
+def _checkout_commit() -> str | None:
+    """``git describe --always --dirty`` (tags excluded: the commit) of the checkout this package runs from, or None
+    (an installed wheel, no git, or git failing)."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    if not (root / ".git").exists():
+        return None
+    try:
+        described = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty", "--abbrev=12",
+                                    "--exclude", "*"], capture_output=True, text=True, timeout=5, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return described.stdout.strip() or None
+
+
+def _print_version(ctx: click.Context, _param, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from . import __version__
+
+    commit = _checkout_commit()
+    click.echo(f"rfsdf {__version__}" + ("" if commit is None else f" (commit {commit})"))
+    ctx.exit()
+
+
 @click.group(cls=_OneLineGroup)
-@click.version_option(package_name="rfsdf")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_print_version,
+              help="Show the version (and the commit, when run from a git checkout) and exit.")
 @click.option("--quiet", is_flag=True, help="No progress bars (results and errors still print).")
 def main(quiet: bool):
     """rfsdf: neural SDF reconstruction from mmWave MIMO radar (GeRaF).
