@@ -28,7 +28,7 @@ import torch
 import trimesh
 
 from .config import validate
-from .materials import get_material, mixture_fresnel
+from .materials import class_permittivities, get_material, mixture_fresnel
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
@@ -39,7 +39,7 @@ __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estim
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 _CHUNK = 1 << 15
-_INTERVAL = (0.1, 0.9)  # the percentiles of per-point eps' that make the interval
+_INTERVAL = (0.1, 0.9)  # the percentiles of per-point reflectivity that make the intervals
 _COMPONENT_SAMPLES = 4000  # surface samples per connected component of the reconstruction
 _MAX_REFLECTIVITY = 0.999  # eps' of a reflectivity is capped there (1 is metal: no finite eps')
 
@@ -100,15 +100,14 @@ def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, quantiles) -> l
 
 def class_reflectivities(classes: tuple[str, ...], frequency_hz: float) -> torch.Tensor:
     """(K,) |Gamma| of each class at normal incidence at ``frequency_hz`` (unpolarised)."""
-    eps = torch.tensor([complex(get_material(c).permittivity(frequency_hz)) for c in classes], dtype=torch.complex128)
-    return mixture_fresnel(torch.ones(len(classes), dtype=torch.float64), torch.eye(len(classes)), eps).abs()
+    return torch.as_tensor(point_reflectivity(torch.eye(len(classes)), classes, frequency_hz))
 
 
 def point_reflectivity(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
     """(Q,) |sum_k p_k Gamma_k| at normal incidence: the reflectivity the renderer gives
     points whose class probabilities are ``probabilities`` (Q, K)."""
-    eps = torch.tensor([complex(get_material(c).permittivity(frequency_hz)) for c in classes], dtype=torch.complex128)
     cos = torch.ones(len(probabilities), dtype=torch.float64)
+    eps = class_permittivities(classes, frequency_hz)
     return mixture_fresnel(cos, probabilities.detach().cpu().double(), eps).abs().numpy()
 
 

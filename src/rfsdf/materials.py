@@ -15,7 +15,7 @@ import torch
 from scipy import optimize
 
 __all__ = [
-    "Material", "MATERIALS", "get_material", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
+    "Material", "MATERIALS", "get_material", "class_permittivities", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
     "PermittivityEstimate", "estimate_permittivity", "EPS0",
 ]
 
@@ -130,6 +130,13 @@ def fresnel_of_cosine(cos_inc, eps, polarization: str = "TE") -> torch.Tensor:
         gamma = (eps_safe * cos_c - root) / (eps_safe * cos_c + root)
         pec_value = 1.0
     return torch.where(pec, torch.full_like(gamma, pec_value), gamma)
+
+
+def class_permittivities(names, frequency_hz: float) -> torch.Tensor:
+    """(K,) complex128 relative permittivities of the catalogue materials ``names`` at
+    ``frequency_hz`` (inf for metal): the classes a material head mixes."""
+    return torch.tensor([complex(get_material(name).permittivity(frequency_hz)) for name in names],
+                        dtype=torch.complex128)
 
 
 def mixture_fresnel(cos_inc: torch.Tensor, probabilities: torch.Tensor, eps: torch.Tensor,

@@ -41,7 +41,7 @@ import torch
 
 from ..geometry import sphere_trace
 from ..geometry.differential import gradient
-from ..materials import get_material, mixture_fresnel
+from ..materials import class_permittivities, mixture_fresnel
 from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
@@ -112,8 +112,7 @@ def model_profiles(field: PrimitiveField, measurements: Measurements, path_m: to
     in the field's free parameters through the hits' tangent-plane distances."""
     acq = measurements.acquisition
     views = acq.tx_m.shape[0]
-    eps = torch.tensor([complex(get_material(c).permittivity(acq.center_frequency_hz)) for c in field.materials],
-                       dtype=torch.complex128)
+    eps = class_permittivities(field.materials, acq.center_frequency_hz)
     beams = [_beam_directions(acq.boresight[v], rays_per_side, half_angle_rad) for v in range(views)]
     directions = torch.cat([d for d, _ in beams])
     solid_angle = torch.cat([w for _, w in beams])

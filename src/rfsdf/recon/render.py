@@ -39,7 +39,7 @@ import numpy as np
 import torch
 
 from ..geometry import Grid, interpolated_sdf
-from ..materials import get_material, mixture_fresnel
+from ..materials import class_permittivities, mixture_fresnel
 from ..progress import progress_bar
 from ..radar import Measurements, SensingOperator
 from ..radar.imaging import require_image_memory
@@ -132,8 +132,7 @@ class CoherentRenderer:
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
         """(K,) complex128 relative permittivities of catalogue materials at the data's centre
         frequency (inf for metal): the classes of a material head."""
-        return torch.tensor([complex(get_material(name).permittivity(self.centre_frequency_hz)) for name in materials],
-                            dtype=torch.complex128, device=self.device)
+        return class_permittivities(materials, self.centre_frequency_hz).to(self.device)
 
     def surface_materials(self, field, *, geometry: bool = True) -> torch.Tensor | None:
         """(Q, K) class probabilities at the current surface candidates, or None for a field
