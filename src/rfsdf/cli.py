@@ -119,7 +119,7 @@ def main(quiet: bool):
 
 @main.group()
 def scene():
-    """Inspect scenes (presets or TOML files)."""
+    """Inspect and export scenes (presets, TOML files or Sionna RT / Mitsuba XML files)."""
 
 
 @scene.command("show")
@@ -140,11 +140,30 @@ def scene_show(name_or_file: str, out: Path | None):
     click.echo(f"wrote {out}")
 
 
+@scene.command("export")
+@click.argument("name_or_file")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder to write scene.xml and meshes/*.ply into (not the scene's own folder).")
+@_one_line_errors
+def scene_export(name_or_file: str, out: Path):
+    """Write a scene as a Sionna RT / Mitsuba 3 scene: OUT/scene.xml and OUT/meshes/*.ply."""
+    from .mitsuba.write import export_scene
+    from .scene import load_scene
+
+    sc = load_scene(name_or_file)
+    if Path(name_or_file).is_file() and out.exists() and out.resolve() == Path(name_or_file).resolve().parent:
+        raise ValueError(f"{out}: --out is the folder of the input {name_or_file}; exporting there could replace "
+                         "its meshes, choose another folder")
+    path = export_scene(sc, out)
+    click.echo(f"wrote {path} and {len(sc.objects)} mesh(es) in {path.parent / 'meshes'}")
+
+
 def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: int = 150_000):
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from .scene import load_scene
 
-    sc, rad = load_scene(scene_name), load_radar(radar_name)
+    rad = load_radar(radar_name)
+    sc = load_scene(scene_name).around_radar(rad.positions_m)
     check_radar_for_scene(rad, sc.lower_m, sc.upper_m, source=radar_name)
     check_materials_in_band(sc, rad, source=scene_name)
     click.echo(sc.summary())

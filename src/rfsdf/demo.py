@@ -165,7 +165,8 @@ def load_scene_and_radar(scene_name: str, radar_name: str) -> SceneAndRadar:
     """The scene and the radar that settings name (presets or files), refused in one line
     before any work when the radar cannot image the scene's box or a material has no model
     in its band."""
-    scene, radar = load_scene(scene_name), load_radar(radar_name)
+    radar = load_radar(radar_name)
+    scene = load_scene(scene_name).around_radar(radar.positions_m)
     check_radar_for_scene(radar, scene.lower_m, scene.upper_m, source=radar_name)
     check_materials_in_band(scene, radar, source=scene_name)
     return SceneAndRadar(scene, radar)

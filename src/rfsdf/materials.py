@@ -15,7 +15,7 @@ import torch
 from scipy import optimize
 
 __all__ = [
-    "Material", "MATERIALS", "get_material", "class_permittivities", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
+    "Material", "ParameterSet", "MATERIALS", "get_material", "class_permittivities", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
     "PermittivityEstimate", "estimate_permittivity", "EPS0",
 ]
 
@@ -24,31 +24,54 @@ POLARIZATIONS = ("TE", "TM", "mean")
 
 
 @dataclass(frozen=True)
-class Material:
-    """A material as ITU-R P.2040 models it: eps' = a f^b, sigma = c f^d, f in GHz.
+class ParameterSet:
+    """One row of ITU-R P.2040 Table 3: eps' = a f^b, sigma = c f^d [S/m], f in GHz, valid
+    over ``valid_ghz`` (the recommendation's frequency range for that fit)."""
 
-    ``pec`` marks a perfect electric conductor (|Gamma| = 1 at every angle).
-    ``valid_ghz`` is the frequency range the recommendation gives the fit for.
-    """
-
-    name: str
     a: float = 1.0
     b: float = 0.0
     c: float = 0.0
     d: float = 0.0
-    pec: bool = False
     valid_ghz: tuple[float, float] = (1.0, 100.0)
+
+
+@dataclass(frozen=True)
+class Material:
+    """A material as ITU-R P.2040 models it: one or more parameter sets, each with its band.
+
+    At a frequency the first set whose band holds it applies (the order of the table, which
+    Sionna RT follows too, so both tools give a material the same permittivity); outside
+    every band :meth:`permittivity` raises. ``pec`` marks a perfect electric conductor
+    (|Gamma| = 1 at every angle and frequency).
+    """
+
+    name: str
+    bands: tuple[ParameterSet, ...] = (ParameterSet(),)
+    pec: bool = False
+
+    def parameters(self, frequency_hz: float) -> ParameterSet:
+        """The parameter set that applies at ``frequency_hz`` [Hz]; ValueError naming the
+        material and its bands when none does."""
+        f_ghz = frequency_hz / 1e9
+        for band in self.bands:
+            lo, hi = band.valid_ghz
+            if lo <= f_ghz <= hi:
+                return band
+        ranges = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in (b.valid_ghz for b in self.bands))
+        raise ValueError(f"material {self.name!r}: {f_ghz:.3g} GHz is outside its ITU-R P.2040 range {ranges} GHz")
+
+    def in_band(self, frequency_hz: float) -> bool:
+        """True when some parameter set (or the PEC) covers ``frequency_hz`` [Hz]."""
+        return self.pec or any(lo <= frequency_hz / 1e9 <= hi for lo, hi in (b.valid_ghz for b in self.bands))
 
     def permittivity(self, frequency_hz: float) -> complex:
         """Complex relative permittivity eps' - j eps'' at ``frequency_hz`` [Hz] (inf for PEC)."""
         if self.pec:
             return complex(math.inf, 0.0)
+        p = self.parameters(frequency_hz)
         f_ghz = frequency_hz / 1e9
-        lo, hi = self.valid_ghz
-        if not lo <= f_ghz <= hi:
-            raise ValueError(f"material {self.name!r}: {f_ghz:.3g} GHz is outside its ITU-R P.2040 range {lo}-{hi} GHz")
-        eps_real = self.a * f_ghz**self.b
-        sigma = self.c * f_ghz**self.d  # [S/m]
+        eps_real = p.a * f_ghz**p.b
+        sigma = p.c * f_ghz**p.d  # [S/m]
         return complex(eps_real, -sigma / (2 * math.pi * frequency_hz * EPS0))
 
     @classmethod
@@ -58,19 +81,48 @@ class Material:
             raise ValueError(f"material {name!r}: relative permittivity must be >= 1, got {eps_real}")
         if not conductivity_s_per_m >= 0.0:
             raise ValueError(f"material {name!r}: conductivity must be >= 0 S/m, got {conductivity_s_per_m}")
-        return cls(name, a=float(eps_real), c=float(conductivity_s_per_m), valid_ghz=(0.0, math.inf))
+        return cls(name, (ParameterSet(a=float(eps_real), c=float(conductivity_s_per_m), valid_ghz=(0.0, math.inf)),))
 
 
-# ITU-R P.2040-1 (07/2015), Table 3.
+def _itu(name: str, *rows: tuple[float, float, float, float, float, float]) -> Material:
+    """A catalogue material from rows (f_low_GHz, f_high_GHz, a, b, c, d) of P.2040-3 Table 3."""
+    return Material(name, tuple(ParameterSet(a, b, c, d, (lo, hi)) for lo, hi, a, b, c, d in rows))
+
+
+# ITU-R P.2040-3 (08/2023), Table 3, rows in the table's order (which decides where two bands
+# overlap, e.g. plasterboard at 110-330 and 100-400 GHz). The 1-100 GHz rows are those of
+# P.2040-1, so every result measured before is unchanged. Metal stays a perfect conductor at
+# every frequency (Table 3's metal is sigma = 1e7 S/m over 1-100 GHz: |Gamma| 0.97-0.99 at
+# 60-79 GHz, a few per cent below; rfsdf's radars and its earlier results use the PEC).
 MATERIALS: dict[str, Material] = {
     m.name: m
     for m in [
-        Material("concrete", 5.24, 0.0, 0.0462, 0.7822),
-        Material("brick", 3.91, 0.0, 0.0238, 0.16, valid_ghz=(1.0, 40.0)),
-        Material("plasterboard", 2.73, 0.0, 0.0085, 0.9395),
-        Material("wood", 1.99, 0.0, 0.0047, 1.0718, valid_ghz=(0.001, 100.0)),
-        Material("glass", 6.31, 0.0, 0.0036, 1.3394, valid_ghz=(0.1, 100.0)),
-        Material("metal", pec=True, valid_ghz=(0.0, math.inf)),
+        _itu("concrete", (1, 100, 5.24, 0, 0.0462, 0.7822), (110, 330, 5.17, 0, 0.0145, 1.09)),
+        _itu("brick", (1, 40, 3.91, 0, 0.0238, 0.16), (110, 330, 4.15, 0, 0.0006, 1.5712)),
+        _itu("plasterboard", (1, 100, 2.73, 0, 0.0085, 0.9395), (110, 330, 2.56, 0, 0.0001, 1.7799),
+             (100, 400, 2.65, 0, 0.0002, 1.598)),
+        _itu("wood", (0.001, 100, 1.99, 0, 0.0047, 1.0718), (110, 330, 1.82, 0, 0.004, 1.0761),
+             (100, 400, 2.1183, 0, 0.0055, 1.1113)),
+        _itu("glass", (0.1, 100, 6.31, 0, 0.0036, 1.3394), (220, 450, 5.79, 0, 0.0004, 1.658),
+             (100, 400, 6.5767, 0, 0.0012, 1.4697)),
+        _itu("clear_acrylic", (110, 330, 2.58, 0, 0.0001, 1.6524)),
+        _itu("ceiling_board", (1, 100, 1.48, 0, 0.0011, 1.075), (220, 450, 1.52, 0, 0.0029, 1.029),
+             (100, 400, 1.2567, 0, 0.00013, 1.454)),
+        _itu("chipboard", (1, 100, 2.58, 0, 0.0217, 0.78), (100, 200, 2.16, 0, 0.0023, 1.359)),
+        _itu("plywood", (1, 40, 2.71, 0, 0.33, 0.0), (110, 330, 1.94, 0, 0.0067, 0.9982),
+             (100, 400, 2.17, 0, 0.0063, 1.045)),
+        _itu("marble", (1, 60, 7.074, 0, 0.0055, 0.9262), (110, 330, 7.94, 0, 0.0001, 1.733),
+             (100, 400, 8.62, 0, 0.0027, 1.15)),
+        _itu("floorboard", (50, 100, 3.66, 0, 0.0044, 1.3515), (220, 300, 5.27, 0, 2.22e-17, 7.3413),
+             (300, 400, 5.27, 0, 0.0003, 2.0298), (400, 450, 5.27, 0, 49.8726, 0.0),
+             (100, 400, 3.1575, 0, 0.001675, 1.32775)),
+        _itu("vinyl_tile", (1, 40, 3.62, 0, 0.0051, 0.8422)),
+        _itu("carpet_tile", (1, 40, 2.08, 0, 0.0009, 0.82)),
+        _itu("asphalt_concrete", (1, 40, 4.83, 0, 0.0108, 1.3969)),
+        _itu("very_dry_ground", (1, 10, 3.0, 0, 0.00015, 2.52)),
+        _itu("medium_dry_ground", (1, 10, 15.0, -0.1, 0.035, 1.63)),
+        _itu("wet_ground", (1, 10, 30.0, -0.4, 0.15, 1.3)),
+        Material("metal", (ParameterSet(valid_ghz=(0.0, math.inf)),), pec=True),
     ]
 }
 _ALIASES = {"drywall": "plasterboard", "pec": "metal"}

@@ -191,7 +191,8 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     observed_text = "" if fraction is None else (
         f"<p>Observed surface: {fraction:.0%} of the true surface is seen near specular by some view; the "
         "observed columns measure completeness over that part only.</p>")
-    scene, radar = load_scene(settings["scene"]), load_radar(settings["radar"])
+    radar = load_radar(settings["radar"])
+    scene = load_scene(settings["scene"]).around_radar(radar.positions_m)
     acquisition = read_measurements(folder / "measurements.h5").acquisition
     field = load_field(folder / "run")
     log = read_log(folder / "run")

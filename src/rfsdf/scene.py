@@ -18,14 +18,18 @@ import trimesh
 from . import geometry as geo
 from .config import preset_names, read_toml, resolve_preset, validate
 from .errors import RfsdfError
+from .limits import input_file
 from .geometry.differential import gradient
 from .geometry.surface_sampling import stratified_surface_points
+from .geometry.unit_shapes import unit_shape
 from .materials import Material
 from .mesh import extract_mesh, extract_mesh_near_surface
+from .mitsuba.read import is_xml_file, read_mitsuba_scene
 from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
 
-__all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_presets", "build_shape"]
+__all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_presets", "build_shape", "surface_mesh",
+           "mesh_reading"]
 
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
 _COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
@@ -86,15 +90,48 @@ def _vec(v) -> torch.Tensor:
     return torch.as_tensor(v, dtype=torch.float64)
 
 
-def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
-    path = Path(spec.path)
-    path = path if path.is_absolute() else base_dir / path
-    mesh = geo.load_watertight_mesh(path)
+def surface_mesh(spec: MeshShapeSpec, base_dir: Path = Path(".")) -> trimesh.Trimesh:
+    """The surface a mesh shape names, in the scene frame [m]: the file's (``path``
+    relative to ``base_dir``) or the built-in unit shape, through ``to_world``, ``size_m``
+    and ``center_m``; before any ``transform`` and before it is read as a solid."""
+    if spec.builtin is not None:
+        mesh = unit_shape(spec.builtin)
+        mesh.metadata["name"] = f"built-in {spec.builtin}"
+    else:
+        path = Path(spec.path)
+        mesh = geo.load_mesh(path if path.is_absolute() else base_dir / path)
+    if spec.to_world is not None:
+        matrix = np.asarray(spec.to_world, dtype=float)
+        if abs(np.linalg.det(matrix[:3, :3])) < 1e-12 or np.any(matrix[3] != (0, 0, 0, 1)):
+            raise ValueError(f"{mesh.metadata['name']}: to_world must be an invertible affine matrix "
+                             "(last row 0 0 0 1)")
+        mesh.apply_transform(matrix)
     if spec.size_m is not None:
         mesh.apply_scale(spec.size_m / float(mesh.extents.max()))
     if spec.center_m is not None:
         mesh.apply_translation(np.asarray(spec.center_m) - mesh.bounds.mean(axis=0))
-    return geo.MeshSDF(mesh)
+    return mesh
+
+
+def mesh_reading(spec: MeshShapeSpec, surface: trimesh.Trimesh) -> str:
+    """How a mesh shape is read: its ``reading``, else solid when the surface is closed and
+    sheet when it is open."""
+    return spec.reading or ("solid" if surface.is_watertight else "sheet")
+
+
+def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
+    surface = surface_mesh(spec, base_dir)
+    reading = mesh_reading(spec, surface)
+    if reading == "solid":
+        return geo.MeshSDF(surface)
+    if spec.thickness_m is None:
+        raise ValueError(f"{surface.metadata['name']}: an open mesh is read as a sheet, which needs thickness_m")
+    below, above = (spec.thickness_m / 2, spec.thickness_m / 2) if reading == "sheet" else (0.0, spec.thickness_m)
+    if reading == "shell" and not surface.is_watertight:
+        raise ValueError(f"{surface.metadata['name']}: only a closed mesh can be read as a shell")
+    if surface.is_watertight and surface.volume < 0:
+        surface.invert()  # outward, so that a shell grows outside
+    return geo.MeshSDF(geo.thicken(surface, below, above))
 
 
 def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None) -> geo.SDF:
@@ -152,6 +189,7 @@ class Scene:
 
     def __init__(self, spec: SceneSpec, base_dir: Path = Path(".")):
         self.spec = spec
+        self.base_dir = base_dir
         self.name = spec.name
         self.lower_m = np.asarray(spec.bounds.lower_m, dtype=float)
         self.upper_m = np.asarray(spec.bounds.upper_m, dtype=float)
@@ -342,19 +380,57 @@ class Scene:
             points[mine] += height[:, None] * samples.normals[mine]
         return points
 
+    def around_radar(self, positions_m) -> Scene:
+        """This scene as a radar at ``positions_m`` (V, 3) [m] sees it: a closed mesh with no
+        ``reading`` of its own that holds one of the positions is a room around the radar,
+        so it is read as a shell (walls ``thickness_m`` thick outside the mesh) instead of a
+        solid the radar would stand in; the same scene when there is none. RfsdfError when
+        a position lies inside any other object."""
+        points = torch.as_tensor(np.asarray(positions_m, dtype=float).reshape(-1, 3))
+        objects, changed = [], False
+        for obj, spec in zip(self.objects, self.spec.objects):
+            with torch.no_grad():
+                inside = (obj.sdf(points) < 0).nonzero().flatten()
+            shape = spec.shape
+            if len(inside):
+                room = isinstance(shape, MeshShapeSpec) and shape.reading is None and isinstance(obj.sdf, geo.MeshSDF) \
+                    and shape.thickness_m is not None \
+                    and mesh_reading(shape, surface_mesh(shape, self.base_dir)) == "solid"
+                if not room:
+                    where = np.round(points[int(inside[0])].numpy(), 3).tolist()
+                    raise RfsdfError(f"scene {self.name!r}: the radar's view {int(inside[0])} at {where} m lies inside "
+                                     f"object {obj.name!r}; move the radar (its views' target_m and distance_m)")
+                spec = spec.model_copy(update={"shape": shape.model_copy(update={"reading": "shell"})})
+                changed = True
+            objects.append(spec)
+        return Scene(self.spec.model_copy(update={"objects": objects}), self.base_dir) if changed else self
+
     def summary(self) -> str:
         """A few lines describing the scene for people."""
         lines = [f"scene {self.name!r}: bounds {self.lower_m.tolist()} .. {self.upper_m.tolist()} m, "
                  f"{len(self.objects)} object(s)"]
         for obj, spec in zip(self.objects, self.spec.objects):
-            eps = obj.material.permittivity(79e9) if obj.material.valid_ghz[0] <= 79 <= obj.material.valid_ghz[1] else None
+            eps = obj.material.permittivity(79e9) if obj.material.in_band(79e9) else None
             eps_text = "PEC" if obj.material.pec else (f"eps(79 GHz)={eps.real:.2f}{eps.imag:+.2f}j" if eps else "")
             rough = obj.roughness
             rough_text = (f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation"
                           if rough else "")
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
-                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}")
+                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}{self._reading_text(spec.shape)}")
         return "\n".join(lines)
+
+
+    def _reading_text(self, shape) -> str:
+        """How a mesh shape's surface was read, with its area: '' for other shapes."""
+        if not isinstance(shape, MeshShapeSpec):
+            return ""
+        surface = surface_mesh(shape, self.base_dir)
+        reading = mesh_reading(shape, surface)
+        closed = "closed" if surface.is_watertight else "open"
+        thick = f" {shape.thickness_m * 1e3:g} mm" if reading != "solid" else ""
+        radar = " (a shell around a radar)" if reading == "solid" and shape.reading is None \
+            and shape.thickness_m is not None else ""
+        return f"  {closed} surface {surface.area:.4g} m^2 read as a {reading}{thick}{radar}"
 
 
 def _half_thickness(sdf, near: torch.Tensor) -> float:
@@ -385,9 +461,13 @@ def _half_thickness(sdf, near: torch.Tensor) -> float:
 
 
 def load_scene(name_or_path) -> Scene:
-    """A scene from a preset name or a TOML file; RfsdfError 'file: field: reason' on bad input."""
+    """A scene from a preset name, a TOML file or a Mitsuba 3 / Sionna RT XML file (told apart
+    by their content, :mod:`rfsdf.mitsuba`); RfsdfError 'file: field: reason' on bad input."""
     path = resolve_preset(name_or_path, "rfsdf.presets.scenes", "scene")
-    spec = validate(SceneSpec, read_toml(path), str(path))
+    if is_xml_file(input_file(path)):
+        spec = read_mitsuba_scene(path)
+    else:
+        spec = validate(SceneSpec, read_toml(path), str(path))
     try:
         return Scene(spec, base_dir=path.parent)
     except ValueError as exc:

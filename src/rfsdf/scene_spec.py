@@ -91,14 +91,39 @@ class CapsuleSpec(_Shape):
     radius_m: PositiveFloat
 
 
+Matrix4 = tuple[tuple[float, float, float, float], tuple[float, float, float, float],
+                tuple[float, float, float, float], tuple[float, float, float, float]]
+Reading = Literal["solid", "sheet", "shell"]
+
+
 class MeshShapeSpec(_Shape):
-    """A watertight mesh file (path relative to the scene file), scaled so that its
-    largest bounding-box edge is ``size_m`` and its bounding-box centre is ``center_m``."""
+    """A triangle mesh: a file (``path``, relative to the scene file) or one of Mitsuba 3's
+    unit shapes (``builtin``: rectangle, cube, disk, sphere, cylinder), mapped by
+    ``to_world`` (a 4 x 4 matrix, rows, metres), then scaled so that its largest
+    bounding-box edge is ``size_m`` and moved so that its bounding-box centre is ``center_m``.
+
+    ``reading`` says which solid the surface stands for: ``solid`` (a closed mesh, its
+    inside), ``sheet`` (a slab ``thickness_m`` thick centred on the surface: a ray tracer's
+    wall, seen from both sides) or ``shell`` (a closed mesh with the radar inside: walls
+    ``thickness_m`` thick outside it, the mesh their inner faces). Without it a closed
+    mesh is a solid and an open one a sheet."""
 
     type: Literal["mesh"]
-    path: str
+    path: str | None = None
+    builtin: Literal["rectangle", "cube", "disk", "sphere", "cylinder"] | None = None
+    to_world: Matrix4 | None = None
     size_m: PositiveFloat | None = None
     center_m: Vec3 | None = None
+    reading: Reading | None = None
+    thickness_m: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.path is None) == (self.builtin is None):
+            raise ValueError("a mesh shape needs exactly one of path and builtin")
+        if self.reading in ("sheet", "shell") and self.thickness_m is None:
+            raise ValueError(f"a mesh read as a {self.reading} needs thickness_m")
+        return self
 
 
 class CSGSpec(_Shape):

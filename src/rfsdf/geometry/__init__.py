@@ -11,7 +11,7 @@ from .csg import (
 )
 from .differential import eikonal_residual, gradient, gradient_and_curvature, normals
 from .grid import Grid, interpolated_sdf, trilinear
-from .mesh_sdf import MeshSDF, load_watertight_mesh
+from .mesh_sdf import MeshSDF, load_mesh, load_watertight_mesh, thicken
 from .occupancy import occupancy
 from .primitives import Box, CappedCylinder, Capsule, Cylinder, HalfSpace, Sphere, Torus
 from .tracing import TraceResult, sphere_trace
@@ -20,7 +20,7 @@ from .transforms import Rotate, Scale, Translate, rotation_matrix
 __all__ = [
     "SDF", "as_points", "Grid", "interpolated_sdf", "trilinear",
     "Sphere", "Box", "HalfSpace", "Cylinder", "CappedCylinder", "Torus", "Capsule", "MeshSDF",
-    "load_watertight_mesh",
+    "load_mesh", "load_watertight_mesh", "thicken",
     "Union", "Intersection", "Complement", "SmoothUnion", "SmoothIntersection",
     "union", "intersection", "complement", "difference", "smooth_union", "smooth_intersection",
     "Translate", "Rotate", "Scale", "rotation_matrix",

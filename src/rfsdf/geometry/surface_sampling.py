@@ -19,6 +19,7 @@ import trimesh
 __all__ = ["morton_order", "stratified_surface_points"]
 
 _MORTON_BITS = 10  # per axis: 1024^3 cells over the mesh's bounding cube
+_STRATA_PER_EDGE = 2.0  # longest triangle edge, in stratum sides sqrt(2 area / count)
 
 
 def morton_order(points: np.ndarray) -> np.ndarray:
@@ -36,13 +37,27 @@ def stratified_surface_points(mesh: trimesh.Trimesh, count: int, seed: int) -> t
     """``count`` points on ``mesh``, one in each of ``count`` strata of equal area (module
     docstring): (count, 3) points and (count,) face indices, as trimesh's sampler returns."""
     rng = np.random.default_rng(seed)
-    order = morton_order(mesh.triangles_center)
-    cumulative = np.cumsum(mesh.area_faces[order])
+    triangles, parent = _fine_triangles(mesh, count)
+    order = morton_order(triangles.mean(1))
+    cumulative = np.cumsum(trimesh.triangles.area(triangles)[order])
     targets = (np.arange(count) + rng.random(count)) * (cumulative[-1] / count)
     faces = order[np.minimum(np.searchsorted(cumulative, targets), len(order) - 1)]
     a, b = rng.random(count), rng.random(count)
     outside = a + b > 1  # fold the unit square onto the triangle: uniform barycentric coordinates
     a[outside], b[outside] = 1 - a[outside], 1 - b[outside]
-    corners = mesh.triangles[faces]
+    corners = triangles[faces]
     points = corners[:, 0] + a[:, None] * (corners[:, 1] - corners[:, 0]) + b[:, None] * (corners[:, 2] - corners[:, 0])
-    return points, faces
+    return points, parent[faces]
+
+
+def _fine_triangles(mesh: trimesh.Trimesh, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's triangles (F', 3, 3), split until none has an edge longer than
+    ``_STRATA_PER_EDGE`` strata, and the index (F',) of the face each came from: within one
+    triangle a point is uniform, so a face much larger than a stratum (a wall of two
+    triangles from a ray tracer's scene) would make the samples on it independent again."""
+    edge = _STRATA_PER_EDGE * np.sqrt(2 * mesh.area / count)
+    if mesh.edges_unique_length.max() <= edge:
+        return mesh.triangles, np.arange(len(mesh.faces))
+    vertices, faces, parent = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge,
+                                                               max_iter=16, return_index=True)
+    return vertices[faces], parent

@@ -71,9 +71,9 @@ def check_radar_for_scene(radar: Radar, lower_m, upper_m, *, source: str = "rada
 def check_material_in_band(material, radar: Radar, *, where: str) -> None:
     """Raise RfsdfError 'where: reason' when ``material`` (a :class:`~rfsdf.materials.Material`)
     has no permittivity model over the radar's band (e.g. ITU-R brick stops at 40 GHz)."""
-    try:
-        for frequency_hz in (float(np.min(radar.frequencies_hz)), float(np.max(radar.frequencies_hz))):
-            material.permittivity(frequency_hz)
+    try:  # every frequency: two parameter sets' bands may leave a gap inside the radar's band
+        for frequency_hz in np.unique(radar.frequencies_hz):
+            material.permittivity(float(frequency_hz))
     except ValueError as exc:
         raise RfsdfError(f"{where}: {exc}") from None
 

@@ -1,0 +1,110 @@
+"""Write an rfsdf scene as a Sionna RT scene: ``scene.xml`` (Mitsuba 3) and ``meshes/*.ply``.
+
+Each object's surface is its mesh (:meth:`rfsdf.scene.Scene.object_meshes`): a mesh
+object's own triangles, or marching cubes of an analytic SDF (192 cells along the object's
+longest edge, or a third of its thickness where it is thinner than 3 such cells). Catalogue
+materials become ``itu-radio-material`` (the names are ITU-R P.2040's, as Sionna's), custom
+ones ``radio-material`` with their constant permittivity and conductivity. The thickness
+Sionna gives a material (its slab model) is the object's: a sheet's or shell's own, else
+the smallest edge of the object's bounding box.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..errors import RfsdfError
+from ..materials import MATERIALS
+from ..scene import Scene
+from ..scene_spec import MeshShapeSpec
+
+__all__ = ["export_scene", "write_ply"]
+
+SCENE_FILE = "scene.xml"
+MESH_FOLDER = "meshes"
+
+
+def write_ply(mesh: trimesh.Trimesh, path: Path) -> None:
+    """A binary little-endian PLY as Sionna's own scenes have them: float32 x, y, z per
+    vertex and a uchar-counted int list per face."""
+    vertices = np.asarray(mesh.vertices, dtype="<f4")
+    faces = np.asarray(mesh.faces, dtype="<i4")
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
+    records = np.zeros(len(faces), dtype=[("count", "u1"), ("index", "<i4", (3,))])
+    records["count"], records["index"] = 3, faces
+    with open(path, "wb") as fh:
+        fh.write(header.encode("ascii"))
+        fh.write(vertices.tobytes())
+        fh.write(records.tobytes())
+
+
+def _identifier(name: str, taken: set[str]) -> str:
+    """An XML id and file stem from an object name: letters, digits, '_' and '-', unique."""
+    base = re.sub(r"[^A-Za-z0-9_-]", "_", name).strip("_") or "object"
+    ident, n = base, 1
+    while ident in taken:
+        n += 1
+        ident = f"{base}_{n}"
+    taken.add(ident)
+    return ident
+
+
+def _property(parent: ET.Element, tag: str, name: str, value) -> None:
+    ET.SubElement(parent, tag, name=name, value=str(value))
+
+
+def _thickness(spec_shape, mesh: trimesh.Trimesh) -> float:
+    if isinstance(spec_shape, MeshShapeSpec) and spec_shape.thickness_m is not None:
+        return float(spec_shape.thickness_m)
+    return float(mesh.extents.min())
+
+
+def export_scene(scene: Scene, folder: Path) -> Path:
+    """Write ``folder``/scene.xml and ``folder``/meshes/<object>.ply; returns the XML's path.
+
+    The meshes are written first and scene.xml last, each by rename, so a crash never
+    leaves a scene file naming a half-written mesh."""
+    folder = Path(folder)
+    meshes = scene.object_meshes()
+    root = ET.Element("scene", version="2.1.0")
+    taken: set[str] = set()
+    files: list[tuple[str, trimesh.Trimesh]] = []
+    for obj, spec, mesh in zip(scene.objects, scene.spec.objects, meshes):
+        ident = _identifier(obj.name, taken)
+        material = obj.material
+        bsdf_id = f"mat-{ident}"
+        if material.name in MATERIALS:
+            bsdf = ET.SubElement(root, "bsdf", type="itu-radio-material", id=bsdf_id)
+            _property(bsdf, "string", "type", material.name)
+        else:
+            bsdf = ET.SubElement(root, "bsdf", type="radio-material", id=bsdf_id)
+            eps = material.bands[0]
+            _property(bsdf, "float", "relative_permittivity", repr(eps.a))
+            _property(bsdf, "float", "conductivity", repr(eps.c))
+        _property(bsdf, "float", "thickness", repr(_thickness(spec.shape, mesh)))
+        shape = ET.SubElement(root, "shape", type="ply", id=ident)
+        _property(shape, "string", "filename", f"{MESH_FOLDER}/{ident}.ply")
+        _property(shape, "boolean", "face_normals", "true")
+        ET.SubElement(shape, "ref", id=bsdf_id, name="bsdf")
+        files.append((ident, mesh))
+    ET.indent(root)
+    try:
+        (folder / MESH_FOLDER).mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=".export-", dir=folder) as tmp:
+            for ident, mesh in files:
+                write_ply(mesh, Path(tmp) / f"{ident}.ply")
+                os.replace(Path(tmp) / f"{ident}.ply", folder / MESH_FOLDER / f"{ident}.ply")
+            ET.ElementTree(root).write(Path(tmp) / SCENE_FILE, encoding="utf-8", xml_declaration=True)
+            os.replace(Path(tmp) / SCENE_FILE, folder / SCENE_FILE)
+    except OSError as exc:
+        raise RfsdfError(f"{folder}: cannot write the scene here ({exc.strerror or exc})") from None
+    return folder / SCENE_FILE
