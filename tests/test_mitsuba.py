@@ -5,6 +5,7 @@ needed."""
 
 import math
 import os
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -242,8 +243,15 @@ def test_every_preset_survives_export_and_reading_back(tmp_path):
     1 mm (marching cubes of the analytic SDF), and the same material."""
     for preset in scene_presets():
         scene = load_scene(preset)
-        back = load_scene(export_scene(scene, tmp_path / preset))
+        xml = export_scene(scene, tmp_path / preset)
+        back = load_scene(xml)
         assert [o.name for o in back.objects] == [o.name for o in scene.objects]
+        # Sionna RT names objects and materials by their ids less 'mesh-' / 'mat-' and refuses
+        # a name used twice (an object named as its material was, before)
+        root = ET.parse(xml).getroot()
+        names = [e.get("id").removeprefix("mesh-") for e in root.iter("shape")]
+        names += [e.get("id").removeprefix("mat-") for e in root.iter("bsdf")]
+        assert len(set(names)) == len(names), names
         samples = scene.sample_surface(float(np.sqrt(sum(m.area for m in scene.object_meshes()) / 20_000)))
         for index, (original, read) in enumerate(zip(scene.objects, back.objects)):
             assert read.material.name == original.material.name

@@ -226,8 +226,8 @@ class _Reader:
         kind = element.get("type")
         if kind not in (*_MESH_TYPES, *UNIT_SHAPES):
             self.fail(element, f"not supported (supported shape types: {', '.join((*_MESH_TYPES, *UNIT_SHAPES))})")
-        name = self.attr(element, "id", required=False) or self.attr(element, "name", required=False) \
-            or f"shape-{len(self.objects)}"
+        name = (self.attr(element, "id", required=False) or self.attr(element, "name", required=False)
+                or f"shape-{len(self.objects)}").removeprefix("mesh-")  # as Sionna RT names objects
         matrix, material, table = np.eye(4), None, {}
         allowed = {"face_normals": "boolean", "flip_normals": "boolean"}
         allowed |= {"filename": "string"} if kind in _MESH_TYPES else {}

@@ -6,7 +6,10 @@ longest edge, or a third of its thickness where it is thinner than 3 such cells)
 materials become ``itu-radio-material`` (the names are ITU-R P.2040's, as Sionna's), custom
 ones ``radio-material`` with their constant permittivity and conductivity. The thickness
 Sionna gives a material (its slab model) is the object's: a sheet's or shell's own, else
-the smallest edge of the object's bounding box.
+the smallest edge of the object's bounding box (to 0.1 mm). Ids follow Sionna's scenes
+(``mesh-<object>``, ``mat-<material>-<thickness>mm``, one bsdf per material and thickness),
+since Sionna names objects and materials by them less the prefix and wants every name
+distinct.
 """
 
 from __future__ import annotations
@@ -48,8 +51,10 @@ def write_ply(mesh: trimesh.Trimesh, path: Path) -> None:
 
 
 def _identifier(name: str, taken: set[str]) -> str:
-    """An XML id and file stem from an object name: letters, digits, '_' and '-', unique."""
-    base = re.sub(r"[^A-Za-z0-9_-]", "_", name).strip("_") or "object"
+    """A file stem and (after 'mesh-') XML id from an object name: letters, digits and '_',
+    unique. Sionna RT names an object by its id less 'mesh-' and a material by its id less
+    'mat-', and wants every name distinct: material names carry a '-', object names never."""
+    base = re.sub(r"[^A-Za-z0-9_]", "_", name).strip("_") or "object"
     ident, n = base, 1
     while ident in taken:
         n += 1
@@ -65,7 +70,7 @@ def _property(parent: ET.Element, tag: str, name: str, value) -> None:
 def _thickness(spec_shape, mesh: trimesh.Trimesh) -> float:
     if isinstance(spec_shape, MeshShapeSpec) and spec_shape.thickness_m is not None:
         return float(spec_shape.thickness_m)
-    return float(mesh.extents.min())
+    return round(float(mesh.extents.min()), 4)  # to 0.1 mm: marching cubes leaves digits that mean nothing
 
 
 def export_scene(scene: Scene, folder: Path) -> Path:
@@ -78,20 +83,24 @@ def export_scene(scene: Scene, folder: Path) -> Path:
     root = ET.Element("scene", version="2.1.0")
     taken: set[str] = set()
     files: list[tuple[str, trimesh.Trimesh]] = []
+    materials: dict[tuple[str, float], str] = {}  # (material, thickness) -> bsdf id, shared as in Sionna's scenes
     for obj, spec, mesh in zip(scene.objects, scene.spec.objects, meshes):
         ident = _identifier(obj.name, taken)
-        material = obj.material
-        bsdf_id = f"mat-{ident}"
-        if material.name in MATERIALS:
-            bsdf = ET.SubElement(root, "bsdf", type="itu-radio-material", id=bsdf_id)
-            _property(bsdf, "string", "type", material.name)
-        else:
-            bsdf = ET.SubElement(root, "bsdf", type="radio-material", id=bsdf_id)
-            eps = material.bands[0]
-            _property(bsdf, "float", "relative_permittivity", repr(eps.a))
-            _property(bsdf, "float", "conductivity", repr(eps.c))
-        _property(bsdf, "float", "thickness", repr(_thickness(spec.shape, mesh)))
-        shape = ET.SubElement(root, "shape", type="ply", id=ident)
+        material, thickness = obj.material, _thickness(spec.shape, mesh)
+        bsdf_id = materials.get((material.name, thickness))
+        if bsdf_id is None:
+            bsdf_id = f"mat-{re.sub(r'[^A-Za-z0-9_]', '_', material.name)}-{thickness * 1e3:g}mm"
+            materials[material.name, thickness] = bsdf_id
+            if material.name in MATERIALS:
+                bsdf = ET.SubElement(root, "bsdf", type="itu-radio-material", id=bsdf_id)
+                _property(bsdf, "string", "type", material.name)
+            else:
+                bsdf = ET.SubElement(root, "bsdf", type="radio-material", id=bsdf_id)
+                eps = material.bands[0]
+                _property(bsdf, "float", "relative_permittivity", repr(eps.a))
+                _property(bsdf, "float", "conductivity", repr(eps.c))
+            _property(bsdf, "float", "thickness", repr(thickness))
+        shape = ET.SubElement(root, "shape", type="ply", id=f"mesh-{ident}")
         _property(shape, "string", "filename", f"{MESH_FOLDER}/{ident}.ply")
         _property(shape, "boolean", "face_normals", "true")
         ET.SubElement(shape, "ref", id=bsdf_id, name="bsdf")
