@@ -52,6 +52,7 @@ from .radar import (
 )
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
+from .radar.imaging import require_image_memory
 from .radar.simulate import SAMPLES_PER_WAVELENGTH, SIMULATED_GAIN
 from .recon import Problem, ReconConfig, Trainer
 from .recon.calibration import check_reference
@@ -198,6 +199,11 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     device = resolve_device(device)
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
+    try:  # before any work: a room's box at the demo's voxel is billions of voxels
+        require_image_memory(len(radar.positions_m), Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m),
+                             f"the demo's images of {settings.scene}")
+    except RfsdfError as exc:
+        raise RfsdfError(f"{exc}; the demo reconstructs scenes of objects about a metre across, not rooms") from None
     config = _with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
     _claim(out, settings)
     timings: dict[str, float] = {}
