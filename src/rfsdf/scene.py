@@ -430,7 +430,8 @@ class Scene:
         thick = f" {shape.thickness_m * 1e3:g} mm" if reading != "solid" else ""
         radar = " (a shell around a radar)" if reading == "solid" and shape.reading is None \
             and shape.thickness_m is not None else ""
-        return f"  {closed} surface {surface.area:.4g} m^2 read as a {reading}{thick}{radar}"
+        area = surface.area * (shape.transform.scale ** 2 if shape.transform is not None else 1.0)
+        return f"  {closed} surface {area:.4g} m^2 read as a {reading}{thick}{radar}"
 
 
 def _half_thickness(sdf, near: torch.Tensor) -> float:
