@@ -296,3 +296,26 @@ def test_a_room_scene_is_read_around_the_radar_and_the_demo_refuses_it_before_an
                           'value="meshes/room.ply"/><ref id="c"/></shape>')
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--out", tmp_path / "demo"], tmp_path)
     assert "the demo's images of" in line and "not rooms" in line
+
+
+def test_a_toml_scene_says_how_a_surface_is_read_or_gets_one_line(tmp_path):
+    _ply(tmp_path, "quad.ply", _quad(0.05))
+    head = 'name = "t"\n[bounds]\nlower_m = [-0.1, -0.1, -0.1]\nupper_m = [0.1, 0.1, 0.1]\n[[objects]]\n' \
+           'name = "pane"\nmaterial = "glass"\n'
+    cases = {
+        'shape = { type = "mesh", path = "meshes/quad.ply", reading = "sheet", thickness_m = 0.006 }': None,
+        'shape = { type = "mesh", path = "meshes/quad.ply", reading = "sheet" }': "read as a sheet needs thickness_m",
+        'shape = { type = "mesh", path = "meshes/quad.ply" }': "an open mesh is read as a sheet, which needs thickness_m",
+        'shape = { type = "mesh", path = "meshes/quad.ply", builtin = "cube" }': "exactly one of path and builtin",
+        'shape = { type = "mesh", path = "meshes/quad.ply", reading = "shell", thickness_m = 0.01 }':
+            "only a closed mesh can be read as a shell",
+    }
+    for index, (shape, error) in enumerate(cases.items()):
+        path = tmp_path / f"scene{index}.toml"
+        path.write_text(head + shape + "\n")
+        if error is None:
+            pane = load_scene(path).objects[0]
+            assert pane.sdf(torch.tensor([[0.0, 0.0, 0.01]], dtype=torch.float64)).item() == pytest.approx(0.007)
+        else:
+            with pytest.raises(RfsdfError, match=error):
+                load_scene(path)
