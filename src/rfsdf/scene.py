@@ -28,7 +28,7 @@ from .mitsuba.read import is_xml_file, read_mitsuba_scene
 from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
 
-__all__ = ["Scene", "SceneObject", "SurfaceSamples", "load_scene", "scene_presets", "build_shape", "surface_mesh",
+__all__ = ["Scene", "SceneObject", "MeshReading", "SurfaceSamples", "load_scene", "scene_presets", "build_shape", "surface_mesh",
            "mesh_reading"]
 
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
@@ -46,15 +46,27 @@ def scene_presets() -> list[str]:
 
 
 @dataclass(frozen=True)
+class MeshReading:
+    """How a mesh shape's surface became a solid: whether the surface is closed, its area
+    [m^2] in the scene frame, and the reading (solid, sheet or shell)."""
+
+    closed: bool
+    area_m2: float
+    reading: str
+
+
+@dataclass(frozen=True)
 class SceneObject:
     """One object: its name, SDF (scene frame, metres), material, for mesh objects the mesh,
-    and the roughness of its surface (None: smooth at the wavelength)."""
+    the roughness of its surface (None: smooth at the wavelength) and, for a mesh shape, how
+    its surface was read."""
 
     name: str
     sdf: geo.SDF
     material: Material
     mesh: trimesh.Trimesh | None = None
     roughness: Roughness | None = None
+    reading: MeshReading | None = None
 
 
 @dataclass(frozen=True)
@@ -96,7 +108,6 @@ def surface_mesh(spec: MeshShapeSpec, base_dir: Path = Path(".")) -> trimesh.Tri
     and ``center_m``; before any ``transform`` and before it is read as a solid."""
     if spec.builtin is not None:
         mesh = unit_shape(spec.builtin)
-        mesh.metadata["name"] = f"built-in {spec.builtin}"
     else:
         path = Path(spec.path)
         mesh = geo.load_mesh(path if path.is_absolute() else base_dir / path)
@@ -119,8 +130,9 @@ def mesh_reading(spec: MeshShapeSpec, surface: trimesh.Trimesh) -> str:
     return spec.reading or ("solid" if surface.is_watertight else "sheet")
 
 
-def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
-    surface = surface_mesh(spec, base_dir)
+def _mesh_shape(spec: MeshShapeSpec, base_dir: Path, surface: trimesh.Trimesh | None = None) -> geo.MeshSDF:
+    """The solid a mesh shape describes, from its ``surface`` when already loaded."""
+    surface = surface if surface is not None else surface_mesh(spec, base_dir)
     reading = mesh_reading(spec, surface)
     if reading == "solid":
         return geo.MeshSDF(surface)
@@ -134,11 +146,13 @@ def _mesh_shape(spec: MeshShapeSpec, base_dir: Path) -> geo.MeshSDF:
     return geo.MeshSDF(geo.thicken(surface, below, above))
 
 
-def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None) -> geo.SDF:
+def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None,
+                surface: trimesh.Trimesh | None = None) -> geo.SDF:
     """The SDF described by a shape table (recursively for CSG), with its transform applied.
 
     ``values`` maps (id of a spec node, field name) to a value used instead of the node's
-    own, e.g. a fitted tensor (``rfsdf.recon.primitive``): the SDF is then differentiable in it."""
+    own, e.g. a fitted tensor (``rfsdf.recon.primitive``): the SDF is then differentiable in it.
+    ``surface`` is a mesh shape's :func:`surface_mesh` when the caller has loaded it."""
     values = values or {}
 
     def get(node, field: str):
@@ -161,7 +175,7 @@ def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None) ->
     elif t == "capsule":
         sdf = geo.Capsule(v("start_m"), v("end_m"), v("radius_m"))
     elif t == "mesh":
-        sdf = _mesh_shape(spec, base_dir)
+        sdf = _mesh_shape(spec, base_dir, surface)
     elif isinstance(spec, CSGSpec):
         children = [build_shape(c, base_dir, values) for c in spec.children]
         combine = {
@@ -187,18 +201,25 @@ def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None) ->
 class Scene:
     """Objects inside axis-aligned bounds; the scene SDF is the union of the objects'."""
 
-    def __init__(self, spec: SceneSpec, base_dir: Path = Path(".")):
+    def __init__(self, spec: SceneSpec, base_dir: Path = Path("."), surfaces: list | None = None):
+        """``surfaces``: per object, its mesh shape's :func:`surface_mesh` when the caller
+        has loaded it (the XML reader has), else None; loaded here when not given."""
         self.spec = spec
         self.base_dir = base_dir
         self.name = spec.name
         self.lower_m = np.asarray(spec.bounds.lower_m, dtype=float)
         self.upper_m = np.asarray(spec.bounds.upper_m, dtype=float)
         self.objects: list[SceneObject] = []
-        for obj in spec.objects:
-            sdf = build_shape(obj.shape, base_dir)
-            mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and obj.shape.transform is None else None
+        for index, obj in enumerate(spec.objects):
+            shape, surface, reading = obj.shape, surfaces[index] if surfaces else None, None
+            if isinstance(shape, MeshShapeSpec):
+                surface = surface if surface is not None else surface_mesh(shape, base_dir)
+                scale = shape.transform.scale if shape.transform is not None else 1.0
+                reading = MeshReading(surface.is_watertight, surface.area * scale ** 2, mesh_reading(shape, surface))
+            sdf = build_shape(shape, base_dir, surface=surface)
+            mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and shape.transform is None else None
             roughness = obj.roughness.build() if obj.roughness is not None else None
-            self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh, roughness))
+            self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh, roughness, reading))
         self._meshes: list[trimesh.Trimesh] | None = None
         # (sdf, bounding sphere or None) per object, the unbounded (cheap) ones first, for sdf()
         bounded = [(o.sdf, o.sdf.bounding_sphere()) for o in self.objects]
@@ -393,9 +414,8 @@ class Scene:
                 inside = (obj.sdf(points) < 0).nonzero().flatten()
             shape = spec.shape
             if len(inside):
-                room = isinstance(shape, MeshShapeSpec) and shape.reading is None and isinstance(obj.sdf, geo.MeshSDF) \
-                    and shape.thickness_m is not None \
-                    and mesh_reading(shape, surface_mesh(shape, self.base_dir)) == "solid"
+                room = obj.reading is not None and shape.reading is None and isinstance(obj.sdf, geo.MeshSDF) \
+                    and shape.thickness_m is not None and obj.reading.reading == "solid"
                 if not room:
                     where = np.round(points[int(inside[0])].numpy(), 3).tolist()
                     raise RfsdfError(f"scene {self.name!r}: the radar's view {int(inside[0])} at {where} m lies inside "
@@ -416,22 +436,21 @@ class Scene:
             rough_text = (f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation"
                           if rough else "")
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
-                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}{self._reading_text(spec.shape)}")
+                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}{_reading_text(obj, spec.shape)}")
         return "\n".join(lines)
 
 
-    def _reading_text(self, shape) -> str:
-        """How a mesh shape's surface was read, with its area: '' for other shapes."""
-        if not isinstance(shape, MeshShapeSpec):
-            return ""
-        surface = surface_mesh(shape, self.base_dir)
-        reading = mesh_reading(shape, surface)
-        closed = "closed" if surface.is_watertight else "open"
-        thick = f" {shape.thickness_m * 1e3:g} mm" if reading != "solid" else ""
-        radar = " (a shell around a radar)" if reading == "solid" and shape.reading is None \
-            and shape.thickness_m is not None else ""
-        area = surface.area * (shape.transform.scale ** 2 if shape.transform is not None else 1.0)
-        return f"  {closed} surface {area:.4g} m^2 read as a {reading}{thick}{radar}"
+
+def _reading_text(obj: SceneObject, shape) -> str:
+    """How a mesh object's surface was read, with its area: '' for other objects."""
+    if obj.reading is None:
+        return ""
+    reading = obj.reading.reading
+    thick = f" {shape.thickness_m * 1e3:g} mm" if reading != "solid" else ""
+    radar = " (a shell around a radar)" if reading == "solid" and shape.reading is None \
+        and shape.thickness_m is not None else ""
+    closed = "closed" if obj.reading.closed else "open"
+    return f"  {closed} surface {obj.reading.area_m2:.4g} m^2 read as a {reading}{thick}{radar}"
 
 
 def _half_thickness(sdf, near: torch.Tensor) -> float:
@@ -465,11 +484,12 @@ def load_scene(name_or_path) -> Scene:
     """A scene from a preset name, a TOML file or a Mitsuba 3 / Sionna RT XML file (told apart
     by their content, :mod:`rfsdf.mitsuba`); RfsdfError 'file: field: reason' on bad input."""
     path = resolve_preset(name_or_path, "rfsdf.presets.scenes", "scene")
+    surfaces = None
     if is_xml_file(input_file(path)):
-        spec = read_mitsuba_scene(path)
+        spec, surfaces = read_mitsuba_scene(path)
     else:
         spec = validate(SceneSpec, read_toml(path), str(path))
     try:
-        return Scene(spec, base_dir=path.parent)
+        return Scene(spec, base_dir=path.parent, surfaces=surfaces)
     except ValueError as exc:
         raise RfsdfError(f"{path}: {exc}") from None

@@ -50,4 +50,6 @@ UNIT_SHAPES = {
 
 def unit_shape(name: str) -> trimesh.Trimesh:
     """A fresh mesh of the built-in shape ``name`` (a key of ``UNIT_SHAPES``)."""
-    return UNIT_SHAPES[name]()
+    mesh = UNIT_SHAPES[name]()
+    mesh.metadata["name"] = f"built-in {name}"
+    return mesh

@@ -150,16 +150,19 @@ class _Reader:
             self.fail(element, f"{key} must be three finite numbers")
         return values
 
-    def properties(self, element: ET.Element, allowed: dict[str, str]) -> dict[str, ET.Element]:
-        """The property children (``<float name=...>`` ...) of ``element`` by name; any other
-        child is an error naming what ``allowed`` ({name: tag}) admits."""
+    def properties(self, element: ET.Element, allowed: dict[str, str],
+                   structural: tuple[str, ...] = ()) -> dict[str, ET.Element]:
+        """The property children (``<float name=...>`` ...) of ``element`` by name; children
+        whose tag is in ``structural`` are left to the caller; any other child is an error
+        naming what is admitted (``allowed``: {name: tag})."""
         found = {}
         for child in element:
             name = child.get("name")
-            if name in _VISUAL:
+            if child.tag in structural or name in _VISUAL:
                 continue
             if name not in allowed or child.tag != allowed[name]:
-                supported = ", ".join(f"<{tag} name={n!r}>" for n, tag in allowed.items()) or "none"
+                supported = ", ".join([*(f"<{tag}>" for tag in structural),
+                                       *(f"<{tag} name={n!r}>" for n, tag in allowed.items())]) or "none"
                 self.fail(child, f"not supported inside <{element.tag} type={element.get('type')!r}> "
                                  f"(supported: {supported})")
             found[name] = child
@@ -228,11 +231,12 @@ class _Reader:
             self.fail(element, f"not supported (supported shape types: {', '.join((*_MESH_TYPES, *UNIT_SHAPES))})")
         name = (self.attr(element, "id", required=False) or self.attr(element, "name", required=False)
                 or f"shape-{len(self.objects)}").removeprefix("mesh-")  # as Sionna RT names objects
-        matrix, material, table = np.eye(4), None, {}
+        matrix, material = np.eye(4), None
         allowed = {"face_normals": "boolean", "flip_normals": "boolean"}
         allowed |= {"filename": "string"} if kind in _MESH_TYPES else {}
         allowed |= {"center": "point", "radius": "float"} if kind == "sphere" else {}
         allowed |= {"p0": "point", "p1": "point", "radius": "float"} if kind == "cylinder" else {}
+        table = self.properties(element, allowed, structural=("transform", "ref", "bsdf"))
         for child in element:
             if child.tag == "transform":
                 if child.get("name") != "to_world":
@@ -244,12 +248,6 @@ class _Reader:
                     self.fail(child, f"no <bsdf id={material!r}> before this shape")
             elif child.tag == "bsdf":
                 material = self.material(child)
-            elif child.get("name") in allowed and child.tag == allowed[child.get("name")]:
-                table[child.get("name")] = child
-            else:
-                supported = ", ".join(f"<{tag} name={n!r}>" for n, tag in allowed.items())
-                self.fail(child, f"not supported inside <shape type={kind!r}> (supported: <transform "
-                                 f"name='to_world'>, <ref>, <bsdf>, {supported})")
         if material is None:
             self.fail(element, "has no material (a <ref id=...> to a bsdf, or a nested <bsdf>)")
         material_name, thickness = self.materials[material]
@@ -362,11 +360,13 @@ class _Reader:
         return table
 
 
-def read_mitsuba_scene(path) -> SceneSpec:
+def read_mitsuba_scene(path) -> tuple[SceneSpec, list[trimesh.Trimesh]]:
     """The :class:`~rfsdf.scene_spec.SceneSpec` of a Mitsuba 3 / Sionna RT scene file (mesh
-    paths relative to the file's folder, which is the scene's base folder); RfsdfError
-    'file: line N: <element>: reason' on anything outside the supported subset."""
+    paths relative to the file's folder, which is the scene's base folder) and each object's
+    surface in the scene frame, read once (``Scene(spec, folder, surfaces)`` takes them);
+    RfsdfError 'file: line N: <element>: reason' on anything outside the supported subset."""
     path = input_file(path)
     root, lines = _parse(path)
-    table = _Reader(path, root, lines).read()
-    return validate(SceneSpec, table, str(path))
+    reader = _Reader(path, root, lines)
+    table = reader.read()
+    return validate(SceneSpec, table, str(path)), reader.surfaces
