@@ -19,37 +19,14 @@ import argparse
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
-from rfsdf.geometry import sphere_trace
 from rfsdf.jsonio import to_json
+from rfsdf.metrics import specular_feet
 from rfsdf.radar import load_radar, read_measurements, simulate
 from rfsdf.recon.range_profile import fit_primitive_profiles
 from rfsdf.scene import Scene, load_scene
 from rfsdf.scene_model import SceneModel
-
-NORMAL_COS = 0.9995  # within 1.8 deg of normal incidence
-CELL_M = 0.1  # one foot point per view and cell of this size
-
-
-def specular_feet(scene: Scene, acquisition, rays_per_side: int = 181) -> torch.Tensor:
-    """(F, 3) points of ``scene``'s surface that some view of ``acquisition`` sees at normal
-    incidence (the specular returns the range profiles hold), one per view and cell."""
-    origins = torch.cat([acquisition.tx_m, acquisition.rx_m], 1).double().mean(1)
-    angles = torch.linspace(-1.3, 1.3, rays_per_side, dtype=torch.float64)
-    a, e = torch.meshgrid(angles, angles, indexing="ij")
-    feet = {}
-    for view, origin in enumerate(origins):
-        azimuth = torch.atan2(acquisition.boresight[view, 1], acquisition.boresight[view, 0]).double()
-        d = torch.stack([torch.cos(e) * torch.cos(azimuth + a), torch.cos(e) * torch.sin(azimuth + a), torch.sin(e)],
-                        -1).reshape(-1, 3)
-        trace = sphere_trace(scene.sdf, origin.expand_as(d), d, t_max=9.0, max_steps=512)
-        normal = trace.hit & ((trace.normals * -d).sum(1) > NORMAL_COS)
-        for point in trace.points[normal]:
-            feet.setdefault((view, *np.floor(point.numpy() / CELL_M).astype(int)), point)
-    return torch.stack(list(feet.values()))
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)

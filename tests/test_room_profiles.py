@@ -2,10 +2,12 @@
 
 import json
 import math
+import tomllib
 
 import pytest
 import tomli_w
 import torch
+import trimesh
 from click.testing import CliRunner
 
 from rfsdf.cli import main
@@ -82,20 +84,44 @@ def test_the_profile_path_gradient_is_the_sdfs_parameter_derivative(room_data):
     assert abs(numeric) > 1e-3  # the wall's distance is in the loss
 
 
+def _reconstruct(room_data, tmp_path, model_kind: str, steps: int, south, east_start: float) -> dict:
+    """`rfsdf reconstruct --model KIND --fit-to profiles` of the two walls, the east wall's
+    x started at ``east_start``: each free parameter's fitted value by name."""
+    write_measurements(tmp_path / "room.h5", room_data[1])
+    model = tmp_path / "model.toml"
+    model.write_text(tomli_w.dumps(_room({"start": [east_start, 0.0, 1.5], "bounds_m": [[1.0, 0, 1.5], [1.4, 0, 1.5]]},
+                                         south)))
+    result = CliRunner().invoke(main, ["reconstruct", str(tmp_path / "room.h5"), "--out", str(tmp_path / "run"),
+                                       "--model", model_kind, "--fit-to", "profiles", "--scene-model", str(model),
+                                       "--steps", str(steps)])
+    assert result.exit_code == 0, result.output
+    return {row["name"]: row["fitted"] for row in json.loads((tmp_path / "run" / "primitive.json").read_text())["free"]}
+
+
 def test_reconstruct_fits_two_room_walls_to_their_range_profiles(room_data, tmp_path):
     """`rfsdf reconstruct --model primitive --fit-to profiles`: the walls started 12 and
     9 cm off (six range resolutions) come back within 1 cm (measured: 0.2 and 0.7 mm), the
     run writes primitive.json, fitted-scene.toml and mesh.ply."""
-    _, data = room_data
-    write_measurements(tmp_path / "room.h5", data)
-    model = tmp_path / "model.toml"
-    model.write_text(tomli_w.dumps(_room({"start": [1.32, 0.0, 1.5], "bounds_m": [[1.0, 0, 1.5], [1.4, 0, 1.5]]},
-                                         {"start": [0.0, -0.81, 1.5], "bounds_m": [[0, -1.1, 1.5], [0, -0.7, 1.5]]})))
-    result = CliRunner().invoke(main, ["reconstruct", str(tmp_path / "room.h5"), "--out", str(tmp_path / "run"),
-                                       "--model", "primitive", "--fit-to", "profiles", "--scene-model", str(model),
-                                       "--steps", "40"])
-    assert result.exit_code == 0, result.output
-    fitted = {row["name"]: row["fitted"] for row in json.loads((tmp_path / "run" / "primitive.json").read_text())["free"]}
+    fitted = _reconstruct(room_data, tmp_path, "primitive", 40,
+                          {"start": [0.0, -0.81, 1.5], "bounds_m": [[0, -1.1, 1.5], [0, -0.7, 1.5]]}, east_start=1.32)
     assert fitted["east.center_m"][0] == pytest.approx(1.2, abs=0.01), fitted
     assert fitted["south.center_m"][1] == pytest.approx(-0.9, abs=0.01), fitted
     assert (tmp_path / "run" / "fitted-scene.toml").is_file() and (tmp_path / "run" / "mesh.ply").is_file()
+
+
+def test_reconstruct_fits_a_hybrid_model_and_its_residual_stays_within_two_range_resolutions(room_data, tmp_path):
+    """`rfsdf reconstruct --model hybrid --fit-to profiles`: the primitives come back as with
+    --model primitive, then the residual's steps; the fitted mesh lies within the residual's
+    amplitude (2 c / 2B = 4.3 cm) of the fitted primitive scene."""
+    fitted = _reconstruct(room_data, tmp_path, "hybrid", 30, [0.0, -0.9, 1.5], east_start=1.25)
+    assert fitted["east.center_m"][0] == pytest.approx(1.2, abs=0.01), fitted
+    mesh = trimesh.load(tmp_path / "run" / "mesh.ply")
+    primitive = Scene(SceneSpec.model_validate(tomllib.loads((tmp_path / "run" / "fitted-scene.toml").read_text())))
+    distance = primitive.sdf(torch.as_tensor(mesh.vertices)).abs()
+    assert float(distance.max()) < 2 * C_M_S / (2 * 7e9)
+
+
+def test_hybrid_needs_the_range_profiles(room_data, tmp_path):
+    result = CliRunner().invoke(main, ["reconstruct", str(tmp_path / "x.h5"), "--out", str(tmp_path / "run"),
+                                       "--model", "hybrid", "--scene", "l-room"])
+    assert result.exit_code == 2 and "--model hybrid fits range profiles only" in result.output, result.output

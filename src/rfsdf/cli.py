@@ -338,12 +338,14 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--scene", "scene_name", default=None,
               help="Scene file or preset that places the calibration reference (only that object is used); with "
                    "--model primitive, the true scene, to report each free parameter's truth.")
-@click.option("--model", "model_kind", type=click.Choice(["neural", "primitive"]), default="neural", show_default=True,
-              help="neural: the GeRaF fit; primitive: the free parameters of --scene-model.")
+@click.option("--model", "model_kind", type=click.Choice(["neural", "primitive", "hybrid"]), default="neural",
+              show_default=True,
+              help="neural: the GeRaF fit; primitive: the free parameters of --scene-model; hybrid: those plus a "
+                   "bounded neural residual (range profiles only).")
 @click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
               help="With --model primitive: a scene file whose parameters may be free tables (README, Rooms).")
 @click.option("--steps", type=click.IntRange(1, 100_000), default=150, show_default=True,
-              help="With --model primitive: gradient steps.")
+              help="With --model primitive: gradient steps; hybrid: as many again for its residual.")
 @click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,
               help="With --model primitive and no --scene-model: start from --scene with every length free and moved "
                    "by up to this much [m] (seeded).")
@@ -363,18 +365,20 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA.
     A calibration reference (--reference, or calibration.reference in --config) needs the
     --scene that places it; its result goes to calibration.json."""
-    if model_kind == "primitive":
+    if model_kind != "neural":
         given = [name for name, value in (("--image", image_path), ("--config", config_path), ("--resume", resume),
                                           ("--reference", reference)) if value]
         if given:
-            raise click.UsageError(f"{', '.join(given)}: not for --model primitive")
+            raise click.UsageError(f"{', '.join(given)}: not for --model {model_kind}")
         if scene_model_path is None and scene_name is None:
-            raise click.UsageError("--model primitive needs --scene-model, or --scene to start from its truth")
+            raise click.UsageError(f"--model {model_kind} needs --scene-model, or --scene to start from its truth")
+        if model_kind == "hybrid" and fit_to != "profiles":
+            raise click.UsageError("--model hybrid fits range profiles only: add --fit-to profiles")
         _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset, fit_to,
-                               _device(device or "auto"))
+                               _device(device or "auto"), hybrid=model_kind == "hybrid")
         return
     if scene_model_path is not None or fit_to != "images":
-        raise click.UsageError("--scene-model and --fit-to: only with --model primitive")
+        raise click.UsageError("--scene-model and --fit-to: only with --model primitive or hybrid")
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -427,10 +431,12 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
 
 def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: float | None, model_path: Path | None,
-                           scene_name: str | None, steps: int, start_offset: float, fit_to: str, device) -> None:
-    """``reconstruct --model primitive``: fit the model (``model_path``, else the scene
+                           scene_name: str | None, steps: int, start_offset: float, fit_to: str, device, *,
+                           hybrid: bool = False) -> None:
+    """``reconstruct --model primitive|hybrid``: fit the model (``model_path``, else the scene
     ``scene_name`` with every length free, ``start_offset`` off) to the images or the range
-    profiles (``fit_to``), write its parameters, the fitted scene file and its mesh into ``out``."""
+    profiles (``fit_to``; the hybrid: profiles, then its residual, rfsdf.recon.hybrid), write
+    its parameters, the fitted scene file and its mesh into ``out``."""
     import tomli_w
 
     from .atomic import atomic_path
@@ -439,6 +445,7 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     from .mesh import export_mesh
     from .radar import read_measurements
     from .recon import Problem
+    from .recon.hybrid import fit_hybrid_profiles, project_mesh, residual_amplitude_m
     from .recon.primitive import fit_primitive
     from .recon.range_profile import fit_primitive_profiles
     from .scene import Scene, load_scene
@@ -454,7 +461,11 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     if any(lo >= mu or ml >= up for lo, up, ml, mu in zip(lower, upper, model_lower, model_upper)):
         raise ValueError(f"{model.source}: bounds: the model's box {list(model_lower)} .. {list(model_upper)} does not "
                          f"overlap the data's {list(lower)} .. {list(upper)}")
-    if fit_to == "profiles":
+    if hybrid:
+        amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)
+        fit = fit_hybrid_profiles(measurements, model, amplitude_m=amplitude, lower_m=model_lower,
+                                  upper_m=model_upper, steps=steps, residual_steps=steps, progress=True)
+    elif fit_to == "profiles":
         fit = fit_primitive_profiles(measurements, model, steps=steps, progress=True)
     else:
         grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
@@ -466,6 +477,8 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     with atomic_path(out / "fitted-scene.toml") as tmp:
         tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
     mesh = fitted.ground_truth_mesh()
+    if hybrid:
+        mesh = project_mesh(fit.field.frozen_sdf(), mesh)
     click.echo(f"wrote {out / 'primitive.json'}, {out / 'fitted-scene.toml'} and "
                f"{export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
     for row in fit.free_table(truth):
@@ -550,14 +563,28 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--relative", is_flag=True,
               help="No calibration reference: one gain fitted per step, materials only relative to each other.")
 @_device_option()
+@click.option("--model", "model_kind", type=click.Choice(["neural", "primitive", "hybrid", "all"]), default="neural",
+              show_default=True,
+              help="neural: the GeRaF fit and its baselines; primitive, hybrid: a scene model fitted to the range "
+                   "profiles (rooms); all: the three side by side.")
+@click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
+              help="With --model primitive/hybrid/all: the start model (a scene file with free parameters); "
+                   "default: --scene with every length free, --start-offset off.")
+@click.option("--start-offset", type=POSITIVE, default=None,
+              help="With --model primitive/hybrid/all and no --scene-model: the largest start offset [m] per length "
+                   "(default 0.15).")
+@click.option("--seed", type=SEED, default=None,
+              help="With --model primitive/hybrid/all: the seed of the data's noise and of the start offsets (default 0).")
 @_one_line_errors
 def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
-         relative: bool, device: str):
+         relative: bool, device: str, model_kind: str, scene_model_path: Path | None, start_offset: float | None,
+         seed: int | None):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
     the material head says each object is made of. A second run with the same --out
-    continues (or reuses) the fit.
+    continues (or reuses) the fit. With --model primitive, hybrid or all (rooms), a table
+    of the models side by side instead.
     """
     import dataclasses
 
@@ -566,6 +593,18 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
 
     if relative and reference is not None:
         raise click.UsageError("--relative and --reference exclude each other")
+    if model_kind != "neural":
+        neural_only = [name for name, given in (("--no-materials", no_materials), ("--reference", reference),
+                                                ("--relative", relative), ("--device", device != "auto")) if given]
+        if neural_only:
+            raise click.UsageError(f"{', '.join(neural_only)}: only with --model neural")
+        _model_demo(out, scene_name, radar_name, quick, model_kind, scene_model_path,
+                    0.15 if start_offset is None else start_offset, seed or 0)
+        return
+    given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
+                                      ("--start-offset", start_offset)) if value is not None]
+    if given:
+        raise click.UsageError(f"{', '.join(given)}: only with --model primitive, hybrid or all")
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name,
                                    relative=relative)
     if no_materials:
@@ -578,6 +617,23 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
     result = run_demo(out, settings, device=device, log=click.echo)
     click.echo(metrics_table(result))
     click.echo(f"total {result.timings_s['total_s']:.0f} s; every artefact and metrics.json are in {out}")
+    click.echo(f"report (open in a browser): {write_report(out)}")
+
+
+def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_kind: str,
+                scene_model_path: Path | None, start_offset: float, seed: int) -> None:
+    """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo)."""
+    import dataclasses
+
+    from .model_demo import MODELS, QUICK_MODELS, ModelDemoSettings, models_table, run_model_demo
+    from .report import write_report
+
+    settings = dataclasses.replace(QUICK_MODELS if quick else ModelDemoSettings(), scene=scene_name, radar=radar_name,
+                                   start_offset_m=start_offset, seed=seed,
+                                   scene_model=None if scene_model_path is None else str(scene_model_path))
+    result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), log=click.echo)
+    click.echo(models_table(result))
+    click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")
     click.echo(f"report (open in a browser): {write_report(out)}")
 
 

@@ -47,7 +47,7 @@ from .material_estimates import (
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
-    Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
+    Measurements, Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
     write_image, write_measurements,
 )
 from .radar.clean import clean_image
@@ -60,7 +60,7 @@ from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "MethodResult", "DemoResult",
+__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images", "MethodResult", "DemoResult",
            "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
 
 
@@ -135,8 +135,8 @@ class DemoResult:
 SETTINGS_NAME = "demo-settings.json"
 
 
-def _claim(out: Path, settings: DemoSettings) -> None:
-    """Make ``out`` this demo's folder, or refuse before writing anything: a folder holding a
+def claim_folder(out: Path, settings) -> None:
+    """Make ``out`` the folder of a demo of ``settings`` (a dataclass), or refuse before writing anything: a folder holding a
     demo of other settings (or files of an unknown run) would end up mixing two runs."""
     stamp, wanted = out / SETTINGS_NAME, json.loads(to_json(dataclasses.asdict(settings)))
     if stamp.exists():
@@ -173,6 +173,17 @@ def load_scene_and_radar(scene_name: str, radar_name: str) -> SceneAndRadar:
     return SceneAndRadar(scene, radar)
 
 
+def require_demo_images(inputs: SceneAndRadar, settings: DemoSettings) -> None:
+    """RfsdfError, before any work, when the demo's images of the scene do not fit in
+    memory (a room's box at the demo's voxel is billions of voxels)."""
+    grid = Grid.from_voxel(inputs.scene.lower_m, inputs.scene.upper_m, settings.voxel_m)
+    try:
+        require_image_memory(len(inputs.radar.positions_m), grid, f"the demo's images of {settings.scene}")
+    except RfsdfError as exc:
+        raise RfsdfError(f"{exc}; the GeRaF demo reconstructs scenes of objects about a metre across; for a room, "
+                         "--model primitive or hybrid") from None
+
+
 def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
     """``config`` calibrated by the scene's ``calibration_reference`` (rendered as its own
     material), unless a reference is already set, the settings ask for relative materials,
@@ -187,9 +198,12 @@ def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSetti
 
 
 def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
-             log: Callable[[str], None] = print, progress: bool = True) -> DemoResult:
+             log: Callable[[str], None] = print, progress: bool = True,
+             measurements: Measurements | None = None) -> DemoResult:
     """Run the pipeline into folder ``out`` with ``settings`` (None: the demo's defaults);
-    returns (and writes as metrics.json) the results.
+    returns (and writes as metrics.json) the results. ``measurements``: data of the scene
+    and radar to use instead of simulating them (the model demo's, so every model sees the
+    same data).
 
     ``device`` (auto, cpu, cuda) runs every stage there, the fit included (it overrides the
     settings' ``train.device``); it is not a setting of the run: a demo resumes on any device.
@@ -199,13 +213,9 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     device = resolve_device(device)
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
-    try:  # before any work: a room's box at the demo's voxel is billions of voxels
-        require_image_memory(len(radar.positions_m), Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m),
-                             f"the demo's images of {settings.scene}")
-    except RfsdfError as exc:
-        raise RfsdfError(f"{exc}; the demo reconstructs scenes of objects about a metre across, not rooms") from None
+    require_demo_images(inputs, settings)
     config = _with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
-    _claim(out, settings)
+    claim_folder(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
@@ -219,8 +229,10 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     log(radar.summary())
     plot_sdf_slices(scene.sdf, scene.lower_m, scene.upper_m, out / "scene-slices.png",
                     title=f"scene {scene.name!r}: SDF slices")
-    if (out / "measurements.h5").exists():  # written atomically by a run of these settings (_claim)
+    if (out / "measurements.h5").exists():  # written atomically by a run of these settings (claim_folder)
         measurements = read_measurements(out / "measurements.h5")
+    elif measurements is not None:
+        write_measurements(out / "measurements.h5", measurements)
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
                                 samples_per_wavelength=settings.samples_per_wavelength,

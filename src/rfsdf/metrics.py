@@ -12,9 +12,9 @@ import torch
 import trimesh
 from scipy.spatial import cKDTree
 
-from .geometry import MeshSDF
+from .geometry import MeshSDF, sphere_trace
 
-__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
+__all__ = ["specular_feet", "seen_surface_errors", "MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
            "with_scene_iou", "evaluate_scene"]
 
 
@@ -204,3 +204,36 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
             else None,
             bias_mm=_median_signed_mm(obj.sdf, pa[mine]) if mine.any() else None)
     return SceneMetrics(full, observed_metrics, observed_fraction, objects, **split)
+
+
+def specular_feet(scene, acquisition, *, rays_per_side: int = 181, normal_cos: float = 0.9995,
+                  cell_m: float = 0.1) -> torch.Tensor:
+    """(F, 3) [m] points of ``scene``'s surface that some view of ``acquisition`` sees at
+    normal incidence (within acos ``normal_cos``, 1.8 deg): the specular returns a room's
+    range profiles hold, one per view and cell of ``cell_m``. Rays from each view's array
+    centre over +-74 deg in azimuth and elevation about its boresight's azimuth."""
+    origins = torch.cat([acquisition.tx_m, acquisition.rx_m], 1).double().mean(1)
+    angles = torch.linspace(-1.3, 1.3, rays_per_side, dtype=torch.float64)
+    a, e = torch.meshgrid(angles, angles, indexing="ij")
+    feet = {}
+    for view, origin in enumerate(origins):
+        azimuth = torch.atan2(acquisition.boresight[view, 1], acquisition.boresight[view, 0]).double()
+        d = torch.stack([torch.cos(e) * torch.cos(azimuth + a), torch.cos(e) * torch.sin(azimuth + a), torch.sin(e)],
+                        -1).reshape(-1, 3)
+        trace = sphere_trace(scene.sdf, origin.expand_as(d), d, t_max=float(scene.extent_m.max()) * 2, max_steps=512)
+        normal = trace.hit & ((trace.normals * -d).sum(1) > normal_cos)
+        for point in trace.points[normal]:
+            feet.setdefault((view, *np.floor(point.numpy() / cell_m).astype(int)), point)
+    return torch.stack(list(feet.values())) if feet else torch.zeros(0, 3, dtype=torch.float64)
+
+
+def seen_surface_errors(sdf: Callable, feet: torch.Tensor, within_m: float = 0.01) -> dict:
+    """How far a fitted surface (``sdf``: points (N, 3) -> (N,) [m]) is from the true surface
+    where the data see it, at :func:`specular_feet` ``feet`` (F, 3): |f| there, its mean and
+    median [mm] and the share within ``within_m``."""
+    if not len(feet):
+        return {"foot_points": 0, "mean_mm": None, "median_mm": None, "within": None, "within_m": within_m}
+    with torch.no_grad():
+        error = sdf(feet).abs().double()
+    return {"foot_points": len(feet), "mean_mm": float(error.mean() * 1e3), "median_mm": float(error.median() * 1e3),
+            "within": float((error < within_m).double().mean()), "within_m": within_m}

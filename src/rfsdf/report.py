@@ -25,6 +25,7 @@ import json
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pydantic
@@ -37,6 +38,7 @@ from .errors import RfsdfError
 from .limits import input_file
 from .material_estimates import check_materials_dict, materials_table, point_classes
 from .mesh import extract_mesh
+from .model_demo import MODEL_MESHES, MODELS, models_table
 from .radar import load_radar, read_measurements
 from .radar.coverage import observed_mask
 from .radar.acquisition import SPEED_OF_LIGHT
@@ -85,6 +87,16 @@ class _DemoMetrics(pydantic.BaseModel):
         if missing:
             raise ValueError(f"missing method(s) {', '.join(missing)}")
         return methods
+
+
+class _ModelsMetrics(pydantic.BaseModel):
+    """What the report reads of a model demo's metrics.json: per model its scores (or why
+    it was not run)."""
+
+    model_config = pydantic.ConfigDict(extra="allow")
+
+    f_threshold_m: float
+    models: dict[Literal[MODELS], dict]
 
 
 _STYLE = """
@@ -174,11 +186,8 @@ def _resolution_text(acquisition, centre_m: np.ndarray) -> str:
             f"{acquisition.shape[0]} views")
 
 
-def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
-    settings = _read_json(folder / SETTINGS_NAME, "demo settings")
+def _demo_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
     result = _read_json(folder / "metrics.json", "a demo's metrics")
-    if not all(isinstance(settings.get(key), str) for key in ("scene", "radar")):
-        raise RfsdfError(f"{folder / SETTINGS_NAME}: scene, radar: missing or not names")
     validate(_DemoMetrics, result, f"{folder / 'metrics.json'}")
     materials = result.get("materials")
     if materials is not None:
@@ -239,6 +248,41 @@ def _demo_sections(folder: Path) -> tuple[str, list[Section]]:
     return f"rfsdf demo: scene {scene.name!r}, radar {radar.name!r}", sections
 
 
+def _models_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
+    """A model demo's folder (``demo --model ...``): the models side by side, each free
+    parameter's start, fit and truth, and each model's mesh coloured by its error."""
+    result = _read_json(folder / "metrics.json", "a model demo's metrics")
+    validate(_ModelsMetrics, result, f"{folder / 'metrics.json'}")
+    radar = load_radar(settings["radar"])
+    scene = load_scene(settings["scene"]).around_radar(radar.positions_m)
+    acquisition = read_measurements(folder / "measurements.h5").acquisition
+    truth = scene.ground_truth_mesh()
+    sections = [Section("summary", "Scene and radar",
+                        _pre(f"{scene.summary()}\n{radar.summary()}\n"
+                             f"{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
+                             f"settings: {json.dumps(settings)}")),
+                Section("models", "The models side by side", _pre(models_table(result)))]
+    views = []
+    for name, row in result["models"].items():
+        if "free" in row:
+            rows = [(p["name"], [_lengths_mm(p["start"]), _lengths_mm(p["fitted"]), _lengths_mm(p.get("truth"))])
+                    for p in row["free"]]
+            sections.append(Section(f"free-{name}", f"{name}: free parameters [mm]",
+                                    _table(["start", "fitted", "truth"], rows)))
+        mesh_path = folder / MODEL_MESHES[name]
+        if "not_run" not in row and mesh_path.is_file():
+            views.append(error_figure(_load_mesh(mesh_path), scene.sdf, f"{name} model, coloured by its signed "
+                                      f"distance to the truth (Chamfer {row['chamfer_l1_mm']:.1f} mm)", truth=truth))
+    views.append(views_figure(truth, acquisition.tx_m.numpy(), acquisition.rx_m.numpy(),
+                              f"true surface and the radar's {acquisition.shape[0]} views (Tx red, Rx blue)"))
+    sections.append(Section("views3d", "3-D views (drag to turn, scroll to zoom)", "".join(figures_html(views))))
+    return f"rfsdf models: scene {scene.name!r}, radar {radar.name!r}", sections
+
+
+def _lengths_mm(values) -> str:
+    return "-" if values is None else ", ".join(f"{v * 1e3:.1f}" for v in values)
+
+
 def _face_classes(field, centres: np.ndarray, *, frequency_hz: float) -> np.ndarray:
     """(F,) at face centres (F, 3) [m], the index of the class nearest the reflectivity the
     material head gives there (the materials table's readout)."""
@@ -275,7 +319,11 @@ def write_report(folder) -> Path:
         if not (folder / "metrics.json").is_file():
             raise RfsdfError(f"{folder}: the demo has not finished (no metrics.json); run `rfsdf demo` with this "
                              "--out again to finish it")
-        title, sections = _demo_sections(folder)
+        settings = _read_json(folder / SETTINGS_NAME, "demo settings")
+        if not all(isinstance(settings.get(key), str) for key in ("scene", "radar")):
+            raise RfsdfError(f"{folder / SETTINGS_NAME}: scene, radar: missing or not names")
+        models = "models" in _read_json(folder / "metrics.json", "a demo's metrics")  # demo --model primitive, ...
+        title, sections = (_models_sections if models else _demo_sections)(folder, settings)
     elif (folder / CHECKPOINT_NAME).is_file():
         title, sections = _run_sections(folder)
     else:

@@ -38,6 +38,8 @@ __all__ = ["PrimitiveField", "PrimitiveFit", "fit_primitive"]
 class PrimitiveField(torch.nn.Module):
     """A scene model with its free parameters as torch parameters (float64)."""
 
+    trace_step = 1.0  # the SDF is exact: sphere tracing steps by f
+
     def __init__(self, model: SceneModel):
         super().__init__()
         self.model = model

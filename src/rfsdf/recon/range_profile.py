@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import torch
 
@@ -49,7 +50,7 @@ from ..scene_model import SceneModel
 from .primitive import PrimitiveField, PrimitiveFit
 
 __all__ = ["C_M_S", "ProfileSettings", "path_axis", "data_profiles", "model_profiles", "profile_loss",
-           "fit_primitive_profiles"]
+           "fit_primitive_profiles", "fit_profiles"]
 
 C_M_S = 299_792_458.0
 _HANN_FWHM = 1.44  # Hann window's main-lobe width at half power, in units of c / B (path)
@@ -119,7 +120,9 @@ def model_profiles(field: PrimitiveField, measurements: Measurements, path_m: to
     view = torch.arange(views).repeat_interleave(rays_per_side ** 2)
     origins = torch.cat([acq.tx_m, acq.rx_m], dim=1).double().mean(1)[view]
     frozen = field.frozen_sdf()
-    trace = sphere_trace(frozen, origins, directions, eps=1e-5, max_steps=256, t_max=float(path_m[-1]) / 2)
+    step = field.trace_step  # below 1 where f is no exact distance (the hybrid's residual)
+    trace = sphere_trace(lambda p: step * frozen(p), origins, directions, eps=1e-5 * step,
+                         max_steps=int(256 / step), t_max=float(path_m[-1]) / 2)
     hit = trace.hit
     d, t, view = directions[hit], trace.t[hit], view[hit]
     points = origins[hit] + t[:, None] * d
@@ -195,21 +198,32 @@ def fit_primitive_profiles(measurements: Measurements, model: SceneModel, *, ste
     docstring): Adam at ``lr`` [m per step, about], decaying to a tenth, for ``steps``."""
     clock = time.perf_counter()
     field = PrimitiveField(model)
+    losses = fit_profiles(measurements, field, [{"params": list(field.values), "lr": lr}], steps=steps,
+                          settings=settings, progress=progress)
+    return PrimitiveFit(field, losses, time.perf_counter() - clock)
+
+
+def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list[dict], *, steps: int,
+                 settings: ProfileSettings = ProfileSettings(), blur: bool = True, progress: bool = False,
+                 prior: Callable[[], torch.Tensor] | None = None, desc: str = "profile fit") -> list[float]:
+    """Fit ``field`` (a primitive or hybrid field) to the range profiles of ``measurements``:
+    Adam over the parameter ``groups`` (torch's param groups, each its ``lr``), each rate
+    decaying to a tenth over ``steps``, the blur shrinking from ``settings.blur_start_m`` to 0
+    (``blur``) or none; ``prior()`` is added to each step's loss. Returns the data loss per step."""
     path = path_axis(measurements, settings.step_m, settings.near_m)
     data = data_profiles(measurements, path)
-    optimizer = torch.optim.Adam(field.parameters(), lr=lr)
+    optimizer = torch.optim.Adam(groups)
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: 0.1 ** (step / max(steps - 1, 1)))
     losses = []
-    for step in progress_bar(range(steps), desc="profile fit", enabled=progress):
-        blur = settings.blur_start_m * (1 - step / max(steps - 1, 1))
+    for step in progress_bar(range(steps), desc=desc, enabled=progress):
+        width = settings.blur_start_m * (1 - step / max(steps - 1, 1)) if blur else 0.0
         predicted = model_profiles(field, measurements, path, rays_per_side=settings.rays_per_side,
-                                   half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=blur)
-        target = _blur(data, blur, settings.step_m)
-        loss = profile_loss(predicted, target)
+                                   half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=width)
+        loss = profile_loss(predicted, _blur(data, width, settings.step_m))
         optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        (loss if prior is None else loss + prior()).backward()
         optimizer.step()
         schedule.step()
         field.clamp_()
         losses.append(float(loss.detach()))
-    return PrimitiveFit(field, losses, time.perf_counter() - clock)
+    return losses

@@ -1,0 +1,220 @@
+"""The demo of scene models: a scene (a room) simulated, then a primitive model, a hybrid
+model and the neural fit reconstructed from the same data, each meshed and scored.
+
+``rfsdf demo --model primitive|hybrid|neural|all``. The primitive and hybrid models are
+fitted to each view's range profile (:mod:`rfsdf.recon.range_profile`,
+:mod:`rfsdf.recon.hybrid`), which is what a few-centimetre array resolves at room scale;
+their start is a scene model file, or the true scene with every length free and moved by a
+seeded random offset (:meth:`~rfsdf.scene_model.SceneModel.from_scene`). The neural model
+is the GeRaF demo (:mod:`rfsdf.demo`) on the same scene and radar, run where its images fit
+in memory and otherwise recorded as not run, with the reason. Every model is scored against
+the true scene: Chamfer, F at half the radar's range resolution, normal consistency, and the
+seen surface (|f| at the specular foot points, :func:`~rfsdf.metrics.specular_feet`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Callable
+
+import tomli_w
+
+from .atomic import atomic_path
+from .demo import QUICK, DemoSettings, claim_folder, load_scene_and_radar, require_demo_images, run_demo
+from .errors import RfsdfError
+from .jsonio import to_json
+from .geometry.mesh_sdf import load_watertight_mesh
+from .mesh import export_mesh
+from .metrics import evaluate_scene, seen_surface_errors, specular_feet
+from .radar import read_measurements, simulate, write_measurements
+from .radar.coverage import observed_mask
+from .recon import load_field
+from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
+from .recon.range_profile import C_M_S, ProfileSettings, fit_primitive_profiles
+from .scene import Scene
+from .scene_model import SceneModel, load_scene_model
+
+__all__ = ["MODELS", "MODEL_MESHES", "ModelDemoSettings", "QUICK_MODELS", "run_model_demo", "models_table"]
+
+MODELS = ("primitive", "hybrid", "neural")
+MODEL_MESHES = {"primitive": "primitive/mesh.ply", "hybrid": "hybrid/mesh.ply", "neural": "neural/neural.ply"}
+
+
+@dataclass(frozen=True)
+class ModelDemoSettings:
+    """What the model demo runs; ``QUICK_MODELS`` is the test suite's seconds-long version.
+
+    ``residual_range_resolutions``: the hybrid residual's amplitude in range resolutions
+    c / 2B of the radar; ``scene_model``: a model file (None: the true scene, every length
+    free, ``start_offset_m`` off, drawn with ``seed``)."""
+
+    scene: str = "l-room"
+    radar: str = "room-60g"
+    scene_model: str | None = None
+    start_offset_m: float = 0.15
+    seed: int = 0
+    steps: int = 150
+    residual_steps: int = 100
+    residual_range_resolutions: float = RANGE_RESOLUTIONS
+    max_surface_samples: int = 3_000_000
+    rays_per_side: int = 48
+    metric_samples: int = 50_000
+    neural: DemoSettings = DemoSettings()  # the GeRaF demo's settings (its scene, radar and seed are these)
+
+
+QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=40_000, rays_per_side=16,
+                                 metric_samples=5_000, neural=QUICK)
+
+
+def _profile_settings(settings: ModelDemoSettings) -> ProfileSettings:
+    return ProfileSettings(rays_per_side=settings.rays_per_side)
+
+
+def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, start: SceneModel | None = None,
+                   log: Callable[[str], None] = print, progress: bool = True) -> dict:
+    """Run ``models`` (names of ``MODELS``) with ``settings`` into folder ``out``; returns
+    (and writes as metrics.json) {"scene", "radar", "f_threshold_m", "models": {name: ...},
+    "timings_s"}, with the models an earlier run of the same settings put there. A model
+    that is not run has {"not_run": reason}; one the folder holds already is read back.
+    ``start``: the fit's start model instead of the settings' (a benchmark's: another scene's
+    model, which lacks an object of this one)."""
+    out = Path(out)
+    inputs = load_scene_and_radar(settings.scene, settings.radar)
+    scene, radar = inputs.scene, inputs.radar
+    if start is None:
+        start = (load_scene_model(settings.scene_model) if settings.scene_model is not None
+                 else SceneModel.from_scene(scene.spec, settings.start_offset_m, settings.seed))
+    claim_folder(out, settings)
+    log(scene.summary())
+    log(radar.summary())
+    timings: dict[str, float] = {}
+    clock = time.perf_counter()
+    if (out / "measurements.h5").exists():  # written atomically by a run of these settings
+        measurements = read_measurements(out / "measurements.h5")
+    else:
+        measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
+                                progress=progress)
+        write_measurements(out / "measurements.h5", measurements)
+    timings["simulate_s"] = round(time.perf_counter() - clock, 2)
+    acq = measurements.acquisition
+    threshold = C_M_S / acq.bandwidth_hz / 4  # half the range resolution
+    feet = specular_feet(scene, acq)
+    score = partial(_score, scene=scene, feet=feet, threshold_m=threshold, samples=settings.metric_samples,
+                    seed=settings.seed, observed=partial(observed_mask, acquisition=acq, occluder=scene.sdf))
+    log(f"{len(feet)} specular foot points: where the data see the true surface; F at {threshold * 1e3:.1f} mm")
+    earlier = json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").is_file() else {}
+    rows = earlier.get("models", {})
+    for name in models:
+        clock = time.perf_counter()
+        if (out / name / "model.json").is_file():  # written atomically by a run of these settings
+            rows[name] = json.loads((out / name / "model.json").read_text())
+        elif name == "neural":
+            rows[name] = _neural(out / "neural", inputs, measurements, settings, score, log, progress)
+        else:
+            rows[name] = _fitted_model(name, out / name, measurements, start, scene, settings, score, progress)
+        timings[f"{name}_s"] = round(time.perf_counter() - clock, 2)
+        log(f"{name}: " + _summary(rows[name]))
+    result = {"scene": scene.name, "radar": radar.name, "f_threshold_m": threshold, "start_offset_m":
+              settings.start_offset_m if settings.scene_model is None else None, "seed": settings.seed,
+              "models": {name: rows[name] for name in MODELS if name in rows},
+              "timings_s": {**timings, "total_s": round(sum(timings.values()), 2)}}
+    with atomic_path(out / "metrics.json") as tmp:
+        tmp.write_text(to_json(result))
+    return result
+
+
+def _score(mesh, sdf, *, scene: Scene, feet, threshold_m: float, samples: int, seed: int, observed) -> dict:
+    """A model's mesh and SDF against the truth: Chamfer, F, normals and the seen surface,
+    also per true object (the feet nearest it)."""
+    metrics = evaluate_scene(mesh, scene, observed=observed, threshold_m=threshold_m, samples=samples, seed=seed)
+    owner = scene.object_index(feet) if len(feet) else feet[:, 0].long()
+    full = metrics.full
+    return {"chamfer_l1_mm": full.chamfer_l1_mm, "f_score": full.fscore,
+            "normal_consistency": full.normal_consistency,
+            "observed_chamfer_l1_mm": None if metrics.observed is None else metrics.observed.chamfer_l1_mm,
+            "seen_surface": {**seen_surface_errors(sdf, feet, within_m=threshold_m), "objects": {
+                obj.name: seen_surface_errors(sdf, feet[owner == index], within_m=threshold_m)
+                for index, obj in enumerate(scene.objects) if (owner == index).any()}}}
+
+
+def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scene: Scene,
+                  settings: ModelDemoSettings, score, progress: bool) -> dict:
+    """Fit the primitive or hybrid model to the range profiles, mesh and score it, and write
+    its folder: ``model.json`` (free parameters), ``fitted-scene.toml`` and ``mesh.ply``."""
+    profile = _profile_settings(settings)
+    if name == "primitive":
+        fit = fit_primitive_profiles(measurements, start, steps=settings.steps, settings=profile, progress=progress)
+    else:
+        amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz, settings.residual_range_resolutions)
+        fit = fit_hybrid_profiles(measurements, start, amplitude_m=amplitude, lower_m=scene.lower_m,
+                                  upper_m=scene.upper_m, steps=settings.steps, residual_steps=settings.residual_steps,
+                                  settings=profile, progress=progress)
+    fitted = Scene(start.fitted_spec(fit.field.fitted()), start.base_dir)
+    mesh = fitted.ground_truth_mesh()
+    sdf = fitted.sdf
+    if name == "hybrid":
+        mesh, sdf = project_mesh(fit.field.sdf, mesh), fit.field.frozen_sdf()
+    folder.mkdir(parents=True, exist_ok=True)
+    with atomic_path(folder / "fitted-scene.toml") as tmp:
+        tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
+    export_mesh(mesh, folder / "mesh.ply")
+    free = fit.free_table(scene.spec)
+    row = {**score(mesh, sdf), "mesh": MODEL_MESHES[name], "parameters": sum(len(p["start"]) for p in free), "fit_s": round(fit.seconds, 2),
+           "steps": len(fit.losses), "loss_first": fit.losses[0], "loss_last": fit.losses[-1], "free": free}
+    if name == "hybrid":
+        row["residual_amplitude_m"] = fit.field.amplitude_m
+        row["residual_weights"] = sum(p.numel() for p in fit.field.residual_parameters())
+    with atomic_path(folder / "model.json") as tmp:
+        tmp.write_text(to_json(row))
+    return row
+
+
+def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, score, log, progress: bool) -> dict:
+    """The GeRaF demo (``settings.neural``) on the same scene, radar and data, scored as the
+    other models are; or {"not_run": reason} where its images do not fit in memory (a room
+    at the demo's voxel)."""
+    demo_settings = dataclasses.replace(settings.neural, scene=settings.scene, radar=settings.radar, seed=settings.seed)
+    try:
+        require_demo_images(inputs, demo_settings)
+    except RfsdfError as exc:
+        return {"not_run": str(exc)}
+    result = run_demo(folder, demo_settings, log=log, progress=progress, measurements=measurements)
+    field = load_field(folder / "run")
+    row = {**score(load_watertight_mesh(folder / "neural.ply"), field.sdf), "mesh": MODEL_MESHES["neural"],
+           "parameters": sum(p.numel() for p in field.parameters()), "fit_s": result.timings_s["fit_s"]}
+    with atomic_path(folder / "model.json") as tmp:
+        tmp.write_text(to_json(row))
+    return row
+
+
+def _summary(row: dict) -> str:
+    if "not_run" in row:
+        return f"not run: {row['not_run']}"
+    seen = row.get("seen_surface") or {}
+    seen_text = (f", seen surface {seen['mean_mm']:.1f} mm mean, {seen['within']:.0%} within "
+                 f"{seen['within_m'] * 1e3:.0f} mm" if seen.get("mean_mm") is not None else "")
+    return f"Chamfer {row['chamfer_l1_mm']:.1f} mm, F {row['f_score']:.3f}{seen_text}, {row['fit_s']:.0f} s"
+
+
+def models_table(result: dict) -> str:
+    """The models side by side, for the terminal."""
+    lines = [f"{'model':<10} {'Chamfer mm':>11} {'F':>6} {'normals':>8} {'seen mm':>8} {'seen <':>7} "
+             f"{'params':>7} {'fit s':>7}"]
+    for name, row in result["models"].items():
+        if "not_run" in row:
+            lines.append(f"{name:<10} not run: {row['not_run']}")
+            continue
+        seen = row.get("seen_surface") or {}
+        cell = lambda v, fmt: "-" if v is None else format(v, fmt)  # noqa: E731
+        lines.append(f"{name:<10} {cell(row['chamfer_l1_mm'], '11.1f')} {cell(row['f_score'], '6.3f')} "
+                     f"{cell(row['normal_consistency'], '8.3f')} {cell(seen.get('mean_mm'), '8.1f')} "
+                     f"{cell(seen.get('within'), '7.0%')} {cell(row.get('parameters'), '7d')} "
+                     f"{cell(row.get('fit_s'), '7.0f')}")
+    lines.append(f"F at {result['f_threshold_m'] * 1e3:.1f} mm (half the range resolution); seen: |f| at the "
+                 "specular foot points, and the share within that threshold")
+    return "\n".join(lines)
