@@ -457,10 +457,8 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
              else SceneModel.from_scene(truth, start_offset, seed=0))
     measurements = read_measurements(data)
     lower, upper = _image_box(data, measurements, bounds, None)
+    model.require_overlap(lower, upper, "the data's")
     model_lower, model_upper = model.spec.bounds.lower_m, model.spec.bounds.upper_m
-    if any(lo >= mu or ml >= up for lo, up, ml, mu in zip(lower, upper, model_lower, model_upper)):
-        raise ValueError(f"{model.source}: bounds: the model's box {list(model_lower)} .. {list(model_upper)} does not "
-                         f"overlap the data's {list(lower)} .. {list(upper)}")
     if hybrid:
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)
         fit = fit_hybrid_profiles(measurements, model, amplitude_m=amplitude, lower_m=model_lower,

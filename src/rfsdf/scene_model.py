@@ -177,6 +177,14 @@ class SceneModel:
             free_lengths(obj["shape"])
         return cls.from_table(table, f"scene {spec.name!r} with every length free")
 
+    def require_overlap(self, lower_m, upper_m, what: str) -> None:
+        """RfsdfError 'source: bounds: ...' when the model's box does not overlap the box
+        ``lower_m`` .. ``upper_m`` (3,) [m] (``what``: whose box it is, for the message)."""
+        lower, upper = self.spec.bounds.lower_m, self.spec.bounds.upper_m
+        if any(lo >= mu or ml >= up for lo, up, ml, mu in zip(lower_m, upper_m, lower, upper)):
+            raise RfsdfError(f"{self.source}: bounds: the model's box {list(lower)} .. {list(upper)} does not overlap "
+                             f"{what} {list(lower_m)} .. {list(upper_m)}")
+
     def fitted_spec(self, values: list[list[float]]) -> SceneSpec:
         """The scene spec with the free parameters at ``values`` (one list per parameter, as
         :attr:`free`): the fitted scene, a scene file like any other."""
