@@ -390,8 +390,9 @@ def test_a_calibration_reference_is_checked_before_any_work(tmp_path, tiny_files
 def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     """A parameter table with no start, a start outside its bounds, a free parameter on a
     shape that has no such parameter or outside the objects' shapes, an unknown key, a model
-    that does not overlap the data's box (or, in the demo, the scene's), a model file with the
-    neural fit: one error line naming the file and field, exit 2, nothing written."""
+    that does not overlap the data's box (or, in the demo, the scene's), a model with nothing
+    free, a model file with the neural fit: one error line naming the file and field, exit 2,
+    nothing written."""
     model = tmp_path / "m.toml"
     head = 'name = "m"\n[bounds]\nlower_m = [-0.05, -0.05, -0.05]\nupper_m = [0.05, 0.05, 0.05]\n'
     ball = '[[objects]]\nname = "ball"\nmaterial = "metal"\n[objects.shape]\ntype = "sphere"\nradius_m = 0.01\n'
@@ -416,6 +417,7 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     demo = ["demo", "--model", "primitive", "--quick", "--scene-model", model, "--out", tmp_path / "demo"]
     assert "bounds: the model's box" in _refused(demo, tmp_path)  # against the scene's box, before simulating
     model.write_text(head + ball)
+    assert "no free parameter, so nothing to fit" in _refused(args, tmp_path)
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--scene-model", model], tmp_path)
     assert "--scene-model and --fit-to: only with --model primitive" in line, line
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--fit-to", "profiles"], tmp_path)

@@ -458,6 +458,7 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     measurements = read_measurements(data)
     lower, upper = _image_box(data, measurements, bounds, None)
     model.require_overlap(lower, upper, "the data's")
+    model.require_free()
     model_lower, model_upper = model.spec.bounds.lower_m, model.spec.bounds.upper_m
     if hybrid:
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)

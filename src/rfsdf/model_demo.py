@@ -90,6 +90,8 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         start = (load_scene_model(settings.scene_model) if settings.scene_model is not None
                  else SceneModel.from_scene(scene.spec, settings.start_offset_m, settings.seed))
     start.require_overlap(scene.lower_m.tolist(), scene.upper_m.tolist(), f"scene {scene.name!r}'s")
+    if set(models) - {"neural"}:
+        start.require_free()
     claim_folder(out, settings)
     log(scene.summary())
     log(radar.summary())

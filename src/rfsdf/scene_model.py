@@ -177,6 +177,13 @@ class SceneModel:
             free_lengths(obj["shape"])
         return cls.from_table(table, f"scene {spec.name!r} with every length free")
 
+    def require_free(self) -> None:
+        """RfsdfError 'source: no free parameter ...' when nothing in the model may move (a
+        scene of mesh shapes placed by to_world matrices has no length to free)."""
+        if not self.free:
+            raise RfsdfError(f"{self.source}: no free parameter, so nothing to fit (mesh shapes placed by a to_world "
+                             "matrix have no lengths; give a model file with center_m or size_m as parameter tables)")
+
     def require_overlap(self, lower_m, upper_m, what: str) -> None:
         """RfsdfError 'source: bounds: ...' when the model's box does not overlap the box
         ``lower_m`` .. ``upper_m`` (3,) [m] (``what``: whose box it is, for the message)."""
