@@ -290,12 +290,15 @@ def test_simulate_takes_a_sionna_scene_on_the_command_line(tmp_path):
 def test_a_room_scene_is_read_around_the_radar_and_the_demo_refuses_it_before_any_work(tmp_path):
     """A closed room mesh with room-28g inside: a shell, not a block the radar stands in; the
     demo (objects about a metre across) says in one line that its images would not fit,
-    before simulating anything."""
+    before simulating anything; the model demo, that the room's mesh has nothing to free."""
     _ply(tmp_path, "room.ply", trimesh.creation.box(extents=(6.0, 5.0, 3.0)).apply_translation((0, 0, 1.5)))
     path = _xml(tmp_path, f'{ITU_CONCRETE}<shape type="ply" id="mesh-room"><string name="filename" '
                           'value="meshes/room.ply"/><ref id="c"/></shape>')
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--out", tmp_path / "demo"], tmp_path)
     assert "the demo's images of" in line and "--model primitive or hybrid" in line
+    line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--model", "primitive", "--out",
+                     tmp_path / "demo"], tmp_path)
+    assert "no free parameter, so nothing to fit" in line, line  # a mesh has no length to free
 
 
 def test_a_toml_scene_says_how_a_surface_is_read_or_gets_one_line(tmp_path):
