@@ -47,8 +47,8 @@ from .material_estimates import (
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene
 from .radar import (
-    Measurements, Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter, read_measurements, simulate,
-    write_image, write_measurements,
+    Measurements, Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter,
+    read_measurements, simulate, write_image, write_measurements,
 )
 from .radar.clean import clean_image
 from .radar.coverage import observed_mask
@@ -60,8 +60,8 @@ from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images", "MethodResult", "DemoResult",
-           "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images",
+           "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -136,8 +136,9 @@ SETTINGS_NAME = "demo-settings.json"
 
 
 def claim_folder(out: Path, settings) -> None:
-    """Make ``out`` the folder of a demo of ``settings`` (a dataclass), or refuse before writing anything: a folder holding a
-    demo of other settings (or files of an unknown run) would end up mixing two runs."""
+    """Make ``out`` the folder of a demo of ``settings`` (a dataclass), or refuse before
+    writing anything: a folder holding a demo of other settings (or files of an unknown run)
+    would end up mixing two runs."""
     stamp, wanted = out / SETTINGS_NAME, json.loads(to_json(dataclasses.asdict(settings)))
     if stamp.exists():
         try:

@@ -14,8 +14,8 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF, sphere_trace
 
-__all__ = ["specular_feet", "seen_surface_errors", "MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
-           "with_scene_iou", "evaluate_scene"]
+__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
+           "with_scene_iou", "evaluate_scene", "specular_feet", "seen_surface_errors"]
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,8 @@ from .radar import read_measurements, simulate, write_measurements
 from .radar.coverage import observed_mask
 from .recon import load_field
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
-from .recon.range_profile import C_M_S, ProfileSettings, fit_primitive_profiles
+from .radar.waveform import range_resolution_m
+from .recon.range_profile import ProfileSettings, fit_primitive_profiles
 from .scene import Scene
 from .scene_model import SceneModel, load_scene_model
 
@@ -105,7 +106,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         write_measurements(out / "measurements.h5", measurements)
     timings["simulate_s"] = round(time.perf_counter() - clock, 2)
     acq = measurements.acquisition
-    threshold = C_M_S / acq.bandwidth_hz / 4  # half the range resolution
+    threshold = range_resolution_m(acq.bandwidth_hz) / 2
     feet = specular_feet(scene, acq)
     score = partial(_score, scene=scene, feet=feet, threshold_m=threshold, samples=settings.metric_samples,
                     seed=settings.seed, observed=partial(observed_mask, acquisition=acq, occluder=scene.sdf))
@@ -158,17 +159,17 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
                                   upper_m=scene.upper_m, steps=settings.steps, residual_steps=settings.residual_steps,
                                   settings=profile, progress=progress)
     fitted = Scene(start.fitted_spec(fit.field.fitted()), start.base_dir)
-    mesh = fitted.ground_truth_mesh()
-    sdf = fitted.sdf
-    if name == "hybrid":
+    mesh, sdf = fitted.ground_truth_mesh(), fitted.sdf
+    if name == "hybrid":  # the primitive mesh moved onto the residual's zero set
         mesh, sdf = project_mesh(fit.field.sdf, mesh), fit.field.frozen_sdf()
     folder.mkdir(parents=True, exist_ok=True)
     with atomic_path(folder / "fitted-scene.toml") as tmp:
         tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
     export_mesh(mesh, folder / "mesh.ply")
     free = fit.free_table(scene.spec)
-    row = {**score(mesh, sdf), "mesh": MODEL_MESHES[name], "parameters": sum(len(p["start"]) for p in free), "fit_s": round(fit.seconds, 2),
-           "steps": len(fit.losses), "loss_first": fit.losses[0], "loss_last": fit.losses[-1], "free": free}
+    row = {**score(mesh, sdf), "mesh": MODEL_MESHES[name], "parameters": sum(len(p["start"]) for p in free),
+           "fit_s": round(fit.seconds, 2), "steps": len(fit.losses), "loss_first": fit.losses[0],
+           "loss_last": fit.losses[-1], "free": free}
     if name == "hybrid":
         row["residual_amplitude_m"] = fit.field.amplitude_m
         row["residual_weights"] = sum(p.numel() for p in fit.field.residual_parameters())

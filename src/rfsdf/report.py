@@ -186,8 +186,20 @@ def _resolution_text(acquisition, centre_m: np.ndarray) -> str:
             f"{acquisition.shape[0]} views")
 
 
-def _demo_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
-    result = _read_json(folder / "metrics.json", "a demo's metrics")
+def _scene_and_radar(folder: Path, settings: dict):
+    """A demo folder's scene (as its radar sees it), radar and acquisition, and the report's
+    section describing them: (scene, radar, acquisition, Section)."""
+    radar = load_radar(settings["radar"])
+    scene = load_scene(settings["scene"]).around_radar(radar.positions_m)
+    acquisition = read_measurements(folder / "measurements.h5").acquisition
+    centre = 0.5 * (scene.lower_m + scene.upper_m)
+    summary = Section("summary", "Scene and radar",
+                      _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition, centre)}\n"
+                           f"settings: {json.dumps(settings)}"))
+    return scene, radar, acquisition, summary
+
+
+def _demo_sections(folder: Path, settings: dict, result: dict) -> tuple[str, list[Section]]:
     validate(_DemoMetrics, result, f"{folder / 'metrics.json'}")
     materials = result.get("materials")
     if materials is not None:
@@ -200,9 +212,7 @@ def _demo_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
     observed_text = "" if fraction is None else (
         f"<p>Observed surface: {fraction:.0%} of the true surface is seen near specular by some view; the "
         "observed columns measure completeness over that part only.</p>")
-    radar = load_radar(settings["radar"])
-    scene = load_scene(settings["scene"]).around_radar(radar.positions_m)
-    acquisition = read_measurements(folder / "measurements.h5").acquisition
+    scene, radar, acquisition, summary = _scene_and_radar(folder, settings)
     field = load_field(folder / "run")
     log = read_log(folder / "run")
     observed = partial(observed_mask, acquisition=acquisition, occluder=scene.sdf)
@@ -232,9 +242,7 @@ def _demo_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
         views.insert(1, material_figure(_load_mesh(folder / "neural.ply"), classes, field.materials,
                                         "GeRaF reconstruction, coloured by the class nearest its fitted |Gamma|"))
     sections = [
-        Section("summary", "Scene and radar",
-                _pre(f"{scene.summary()}\n{radar.summary()}\n{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
-                     f"settings: {json.dumps(settings)}")),
+        summary,
         Section("images", "Matched-filter and CLEAN images",
                 "".join(_png(folder / name, name) for name in ("image-mip.png", "clean-mip.png")
                         if (folder / name).is_file())),
@@ -248,20 +256,13 @@ def _demo_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
     return f"rfsdf demo: scene {scene.name!r}, radar {radar.name!r}", sections
 
 
-def _models_sections(folder: Path, settings: dict) -> tuple[str, list[Section]]:
+def _models_sections(folder: Path, settings: dict, result: dict) -> tuple[str, list[Section]]:
     """A model demo's folder (``demo --model ...``): the models side by side, each free
     parameter's start, fit and truth, and each model's mesh coloured by its error."""
-    result = _read_json(folder / "metrics.json", "a model demo's metrics")
     validate(_ModelsMetrics, result, f"{folder / 'metrics.json'}")
-    radar = load_radar(settings["radar"])
-    scene = load_scene(settings["scene"]).around_radar(radar.positions_m)
-    acquisition = read_measurements(folder / "measurements.h5").acquisition
+    scene, radar, acquisition, summary = _scene_and_radar(folder, settings)
     truth = scene.ground_truth_mesh()
-    sections = [Section("summary", "Scene and radar",
-                        _pre(f"{scene.summary()}\n{radar.summary()}\n"
-                             f"{_resolution_text(acquisition, 0.5 * (scene.lower_m + scene.upper_m))}\n"
-                             f"settings: {json.dumps(settings)}")),
-                Section("models", "The models side by side", _pre(models_table(result)))]
+    sections = [summary, Section("models", "The models side by side", _pre(models_table(result)))]
     views = []
     for name, row in result["models"].items():
         if "free" in row:
@@ -322,8 +323,9 @@ def write_report(folder) -> Path:
         settings = _read_json(folder / SETTINGS_NAME, "demo settings")
         if not all(isinstance(settings.get(key), str) for key in ("scene", "radar")):
             raise RfsdfError(f"{folder / SETTINGS_NAME}: scene, radar: missing or not names")
-        models = "models" in _read_json(folder / "metrics.json", "a demo's metrics")  # demo --model primitive, ...
-        title, sections = (_models_sections if models else _demo_sections)(folder, settings)
+        result = _read_json(folder / "metrics.json", "a demo's metrics")
+        sections_of = _models_sections if "models" in result else _demo_sections  # demo --model primitive, ...
+        title, sections = sections_of(folder, settings, result)
     elif (folder / CHECKPOINT_NAME).is_file():
         title, sections = _run_sections(folder)
     else:

@@ -28,8 +28,8 @@ from .mitsuba.read import is_xml_file, read_mitsuba_scene
 from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
 
-__all__ = ["Scene", "SceneObject", "MeshReading", "SurfaceSamples", "load_scene", "scene_presets", "build_shape", "surface_mesh",
-           "mesh_reading"]
+__all__ = ["Scene", "SceneObject", "MeshReading", "SurfaceSamples", "load_scene", "scene_presets", "build_shape",
+           "surface_mesh", "mesh_reading"]
 
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
 _COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
@@ -436,7 +436,8 @@ class Scene:
             rough_text = (f"  rough: {rough.rms_m * 1e3:g} mm rms, {rough.correlation_m * 1e3:g} mm correlation"
                           if rough else "")
             lines.append(f"  {obj.name:<16} {spec.shape.type:<16} {obj.material.name:<13} {eps_text}"
-                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}{_reading_text(obj, spec.shape)}")
+                         f"{'' if obj.sdf.exact else '  (distance is a bound)'}{rough_text}"
+                         f"{_reading_text(obj, spec.shape)}")
         return "\n".join(lines)
 
 

@@ -21,9 +21,10 @@ import torch
 import trimesh
 
 from ..radar import Measurements
+from ..radar.waveform import range_resolution_m
 from ..scene_model import SceneModel
 from .primitive import PrimitiveField, PrimitiveFit
-from .range_profile import C_M_S, ProfileSettings, fit_profiles
+from .range_profile import ProfileSettings, fit_profiles
 
 __all__ = ["HybridField", "TRACE_STEP", "RANGE_RESOLUTIONS", "residual_amplitude_m", "fit_hybrid_profiles",
            "project_mesh"]
@@ -35,7 +36,7 @@ PRIOR_WEIGHT = 1.0  # of the residual's prior against the profile loss (fit_hybr
 
 def residual_amplitude_m(bandwidth_hz: float, range_resolutions: float = RANGE_RESOLUTIONS) -> float:
     """The residual's amplitude [m]: ``range_resolutions`` times c / 2B."""
-    return range_resolutions * C_M_S / (2 * bandwidth_hz)
+    return range_resolutions * range_resolution_m(bandwidth_hz)
 
 
 class HybridField(PrimitiveField):
