@@ -1,6 +1,7 @@
 # Two entry points, each of which sets everything up first (idempotent):
 #   make demo   -> venv + install + `rfsdf demo`
-#   make test   -> venv + install + the test suite
+#   make test   -> venv + install + the test suite (which builds the docs too)
+#   make docs   -> the documentation site in site/
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -8,7 +9,7 @@ STAMP  := $(VENV)/.installed
 
 BROWSER := $(VENV)/.browser
 
-.PHONY: setup demo test bench
+.PHONY: setup demo test docs bench
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +35,11 @@ demo: $(STAMP)
 
 test: $(STAMP) $(BROWSER)
 	$(BIN)/python -m pytest
+
+# The documentation site (MkDocs, Material theme) -> site/; a warning fails the build. The
+# test suite builds it too (tests/test_docs.py).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/operator_throughput.py

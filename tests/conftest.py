@@ -17,7 +17,7 @@ SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 def pytest_configure(config):
     """RFSDF_TEST_THREADS=N runs the suite with N torch threads (torch clamps OMP_NUM_THREADS
     to the core count, so 4 threads on a 2-core machine need this): a verdict must not depend
-    on it (README, "Reproducibility")."""
+    on it (docs/guide/reproducibility.md)."""
     threads = os.environ.get("RFSDF_TEST_THREADS")
     if threads:
         torch.set_num_threads(int(threads))

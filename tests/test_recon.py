@@ -108,7 +108,7 @@ def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_d
     that draw fresh samples at each radius (4 draws): a sphere's RCS grows as r^2, so d log E /
     dr is about 2 / r = 100 / m. With frozen areas the gradient said -86 / m (samples crowd
     into the Fresnel zone as the sphere shrinks, each keeping its area): the fit pulled bright
-    balls inward (docs/quality-history.md, "The area term")."""
+    balls inward (docs/results/quality-history.md, "The area term")."""
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid(), spacing_m=data.acquisition.wavelength_m / 6)
     views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
@@ -258,7 +258,7 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, threads):
     and the limb interfere; local minima near 20, 21 and 22 mm of about the same depth), and
     a fit stops in one of them. It used to reach lambda/4 helped by a bias: with frozen
     sample areas the gradient said a sphere brightens as it shrinks, and pulled every convex
-    surface inward (docs/quality-history.md, "The area term").
+    surface inward (docs/results/quality-history.md, "The area term").
 
     Margins (``benchmarks/tiny_fit_margin.py`` -> results/tiny_fit_margin.json: seeds 0-11
     at 1 thread, 0-5 at 2 and 4, data simulated at that count): every fit moved inward, by
@@ -347,7 +347,7 @@ def test_the_detection_target_closes_two_glints_of_one_object_into_one_volume():
 
 def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_data, tmp_path, monkeypatch):
     """The warm start regresses a rough thresholded image and wants a firmer Eikonal term than
-    the fit (README, "Quality on the default demo"): ``[init]`` and ``[loss]`` each set one."""
+    the fit (docs/results/demo-quality.md): ``[init]`` and ``[loss]`` each set one."""
     import rfsdf.recon.trainer as trainer_module
 
     _, data = sphere_data

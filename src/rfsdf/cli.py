@@ -315,7 +315,7 @@ def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, 
 @click.option("--conjugate", is_flag=True, help="Flip the IF phase sign (e.g. TI mmWave captures).")
 @_one_line_errors
 def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
-    """Convert a real FMCW capture (layout in the README) into a measurements file."""
+    """Convert a real FMCW capture (layout: docs/reference/formats.md) into a measurements file."""
     from .radar import import_fmcw, write_measurements
 
     _refuse_overwriting_inputs(out, capture)
@@ -343,7 +343,7 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
               help="neural: the GeRaF fit; primitive: the free parameters of --scene-model; hybrid: those plus a "
                    "bounded neural residual (range profiles only).")
 @click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
-              help="With --model primitive: a scene file whose parameters may be free tables (README, Rooms).")
+              help="With --model primitive: a scene file whose parameters may be free tables (docs/reference/formats.md).")
 @click.option("--steps", type=click.IntRange(1, 100_000), default=150, show_default=True,
               help="With --model primitive: gradient steps; hybrid: as many again for its residual.")
 @click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,

@@ -28,13 +28,13 @@ class TransformSpec(StrictModel):
     """Applied in the order scale, rotate, translate (all about the origin)."""
 
     translate_m: Vec3 = (0.0, 0.0, 0.0)
-    rotate_axis: Vec3 = (0.0, 0.0, 1.0)
-    rotate_rad: float = 0.0
-    scale: PositiveFloat = 1.0
+    rotate_axis: Vec3 = (0.0, 0.0, 1.0)  # the axis to rotate about (normalised when read)
+    rotate_rad: float = 0.0  # the angle about rotate_axis, right-handed [rad]
+    scale: PositiveFloat = 1.0  # uniform scale, about the origin
 
 
 class _Shape(StrictModel):
-    transform: TransformSpec | None = None
+    transform: TransformSpec | None = None  # applied after the shape's own placement
 
 
 class SphereSpec(_Shape):
@@ -51,13 +51,13 @@ class BoxSpec(_Shape):
 
 class HalfSpaceSpec(_Shape):
     type: Literal["halfspace"]
-    normal: Vec3
+    normal: Vec3  # outward normal n (normalised when read): inside where n.p <= offset_m
     offset_m: float = 0.0
 
 
 class CylinderSpec(_Shape):
     type: Literal["cylinder"]
-    radius_m: PositiveFloat
+    radius_m: PositiveFloat  # an infinite cylinder about the line through point_m along axis
     axis: Vec3 = (0.0, 0.0, 1.0)
     point_m: Vec3 = (0.0, 0.0, 0.0)
 
@@ -65,15 +65,15 @@ class CylinderSpec(_Shape):
 class CappedCylinderSpec(_Shape):
     type: Literal["capped_cylinder"]
     radius_m: PositiveFloat
-    height_m: PositiveFloat
+    height_m: PositiveFloat  # the full height along axis, centred on center_m
     axis: Vec3 = (0.0, 0.0, 1.0)
     center_m: Vec3 = (0.0, 0.0, 0.0)
 
 
 class TorusSpec(_Shape):
     type: Literal["torus"]
-    major_radius_m: PositiveFloat
-    minor_radius_m: PositiveFloat
+    major_radius_m: PositiveFloat  # radius of the circle the tube follows, normal to axis
+    minor_radius_m: PositiveFloat  # radius of the tube, below major_radius_m
     axis: Vec3 = (0.0, 0.0, 1.0)
     center_m: Vec3 = (0.0, 0.0, 0.0)
 
@@ -88,7 +88,7 @@ class CapsuleSpec(_Shape):
     type: Literal["capsule"]
     start_m: Vec3
     end_m: Vec3
-    radius_m: PositiveFloat
+    radius_m: PositiveFloat  # all points within radius_m of the segment start_m .. end_m
 
 
 Matrix4 = tuple[tuple[float, float, float, float], tuple[float, float, float, float],
@@ -109,12 +109,12 @@ class MeshShapeSpec(_Shape):
     mesh is a solid and an open one a sheet."""
 
     type: Literal["mesh"]
-    path: str | None = None
+    path: str | None = None  # a PLY, OBJ or STL file, relative to the scene file
     builtin: Literal["rectangle", "cube", "disk", "sphere", "cylinder"] | None = None
     to_world: Matrix4 | None = None
     size_m: PositiveFloat | None = None
     center_m: Vec3 | None = None
-    reading: Reading | None = None
+    reading: Reading | None = None  # solid, sheet or shell (see the docstring above)
     thickness_m: PositiveFloat | None = None
 
     @model_validator(mode="after")
@@ -128,8 +128,9 @@ class MeshShapeSpec(_Shape):
 
 class CSGSpec(_Shape):
     type: Literal["union", "intersection", "difference", "smooth_union", "smooth_intersection"]
+    # shapes of any type, CSG included; difference: the first less the rest
     children: list[ShapeSpec] = Field(min_length=2)
-    blend_m: PositiveFloat | None = None
+    blend_m: PositiveFloat | None = None  # the smooth blends' radius [m]
 
     @model_validator(mode="after")
     def _blend(self):
@@ -158,7 +159,7 @@ class MaterialSpec(StrictModel):
 
 
 class BoundsSpec(StrictModel):
-    lower_m: Vec3
+    lower_m: Vec3  # the box every object lies in and the images cover [m]
     upper_m: Vec3
 
     @model_validator(mode="after")
@@ -171,25 +172,25 @@ class BoundsSpec(StrictModel):
 class RoughnessSpec(StrictModel):
     """A Gaussian random height field on the object's surface (:class:`rfsdf.roughness.Roughness`)."""
 
-    rms_m: float = Field(ge=0.0)
-    correlation_m: PositiveFloat
-    seed: int = 0
+    rms_m: float = Field(ge=0.0)  # rms height of the surface about its smooth shape [m]
+    correlation_m: PositiveFloat  # correlation length of the heights [m]
+    seed: int = 0  # the height field's seed (a fixed surface, not noise)
 
     def build(self) -> Roughness:
         return Roughness(self.rms_m, self.correlation_m, self.seed)
 
 
 class ObjectSpec(StrictModel):
-    name: str
-    material: str
+    name: str  # unique in the scene
+    material: str  # a catalogue name (rfsdf.materials) or a [[materials]] name
     shape: ShapeSpec
-    roughness: RoughnessSpec | None = None
+    roughness: RoughnessSpec | None = None  # a random height field on the surface; none: smooth
 
 
 class SceneSpec(StrictModel):
-    name: Name
+    name: Name  # a plain name (it names files)
     bounds: BoundsSpec
-    materials: list[MaterialSpec] = []
+    materials: list[MaterialSpec] = []  # custom materials, beyond the ITU-R P.2040-3 catalogue
     objects: list[ObjectSpec] = Field(min_length=1)
     # the object a radar engineer would calibrate the gain with (its material is known): the
     # demo renders it as its material and reads the other materials absolutely

@@ -32,7 +32,12 @@ def _unit(vector, name: str) -> torch.Tensor:
 
 
 class Sphere(SDF):
-    """Sphere of ``radius`` [m] about ``center`` (3,) [m]: f = |p - c| - r."""
+    """Sphere of ``radius`` [m] about ``center`` (3,) [m]: f = |p - c| - r.
+
+    >>> import torch
+    >>> Sphere(0.02)(torch.tensor([[0.05, 0.0, 0.0], [0.0, 0.0, 0.0]], dtype=torch.float64))
+    tensor([ 0.0300, -0.0200], dtype=torch.float64)
+    """
 
     def __init__(self, radius: float, center=(0.0, 0.0, 0.0)):
         self.radius = _positive(radius, "radius")

@@ -54,6 +54,15 @@ def sphere_trace(
     ----------
     origins, directions : (N, 3) float tensors [m], scene frame.
     eps : hit tolerance on |f| [m]. max_steps : iteration cap. t_max : miss distance [m].
+
+    Examples
+    --------
+    A ray from 1 m aimed at the centre of a 0.2 m sphere lands at t = 0.8 m in one step:
+
+    >>> from rfsdf.geometry import Sphere
+    >>> result = sphere_trace(Sphere(0.2), torch.tensor([[1.0, 0, 0]]), torch.tensor([[-1.0, 0, 0]]))
+    >>> round(float(result.t[0]), 6), bool(result.hit[0]), int(result.steps[0])
+    (0.8, True, 1)
     """
     origins, directions = as_points(origins), as_points(directions)
     if origins.shape != directions.shape:

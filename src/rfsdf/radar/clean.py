@@ -35,7 +35,7 @@ __all__ = ["FLOOR_QUANTILE", "CleanResult", "clean_view", "clean_image"]
 
 # The residual floor is read at the 99th percentile of the voxels, a 1 % false-alarm rate of a
 # CFAR detector: on the default demo it is 0.063 of the peak amplitude, on the 36-view radar
-# 0.125, the thresholds a sweep against the truth picks on each (README, "Quality").
+# 0.125, the thresholds a sweep against the truth picks on each (docs/results/demo-quality.md).
 FLOOR_QUANTILE = 0.99
 
 

@@ -117,7 +117,7 @@ def read_image(path) -> Image:
 
 
 def import_fmcw(path, *, conjugate: bool = False) -> Measurements:
-    """Read a real FMCW capture (HDF5, layout in the README) as Measurements.
+    """Read a real FMCW capture (HDF5, layout in docs/reference/formats.md) as Measurements.
 
     Datasets: tx_m (M, 3), rx_m (M, 3) [m] per frame, adc (M, N) complex, optional
     boresight (M, 3); attributes start_frequency_hz, slope_hz_per_s, sample_rate_hz.

@@ -10,7 +10,7 @@ see something, the power-weighted mean of their bisectors,
 points along the surface normal there, and its length |m| <= 1 says how much the views
 agree. Thresholded images throw this away: their boundaries have the shape of the blur
 (the PSF), not of the surface; on the default demo the warm start's normals on the seen
-faces were 42 degrees off (median), this estimate's 8 (README, "Normals from the views").
+faces were 42 degrees off (median), this estimate's 8 (docs/results/demo-quality.md, "Normals from the views").
 """
 
 from __future__ import annotations

@@ -31,14 +31,14 @@ _BYTES_PER_SAMPLE = 8  # complex64
 
 
 class WaveformSpec(StrictModel):
-    kind: Literal["ofdm", "fmcw"]
+    kind: Literal["ofdm", "fmcw"]  # ofdm: carrier_hz, bandwidth_hz, subcarriers; fmcw: the other four
     carrier_hz: PositiveFloat | None = None
     bandwidth_hz: PositiveFloat | None = None
-    subcarriers: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)
+    subcarriers: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)  # K frequencies, B / K apart
     start_hz: PositiveFloat | None = None
     slope_hz_per_s: PositiveFloat | None = None
     sample_rate_hz: PositiveFloat | None = None
-    samples: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)
+    samples: int | None = Field(None, ge=1, le=MAX_FREQUENCIES)  # ADC samples: start_hz + slope n / rate
 
     @model_validator(mode="after")
     def _complete(self):
@@ -65,7 +65,7 @@ class ArraySpec(StrictModel):
     ny: int | None = Field(None, ge=1, le=MAX_ELEMENTS)  # uniform_planar
     spacing_m: PositiveFloat | None = None  # uniform_linear, uniform_planar
     scan_steps: tuple[ScanSteps, ScanSteps] = (1, 1)  # synthetic aperture grid (x, y)
-    scan_step_m: PositiveFloat | None = None
+    scan_step_m: PositiveFloat | None = None  # the synthetic aperture's step
 
     @model_validator(mode="after")
     def _complete(self):
@@ -105,10 +105,12 @@ class ArraySpec(StrictModel):
 
 class ViewsSpec(StrictModel):
     kind: Literal["turntable"] = "turntable"
-    distance_m: PositiveFloat
+    distance_m: PositiveFloat  # from target_m to each view's array centre
+    # ring e: azimuths_per_ring[e] views evenly spaced at elevations_rad[e] (alternate rings
+    # offset by half a step)
     azimuths_per_ring: list[Annotated[int, Field(ge=1, le=MAX_ELEMENTS)]] = Field(min_length=1)
     elevations_rad: list[float] = Field(min_length=1)
-    target_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    target_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the point every view looks at
 
     @model_validator(mode="after")
     def _rings(self):
@@ -118,12 +120,12 @@ class ViewsSpec(StrictModel):
 
 
 class AntennaSpec(StrictModel):
-    pattern_exponent: float = Field(default=0.0, ge=0.0)
-    spreading: bool = True
+    pattern_exponent: float = Field(default=0.0, ge=0.0)  # cos^n of the angle off boresight; 0: isotropic
+    spreading: bool = True  # 1/d amplitude on each path
 
 
 class NoiseSpec(StrictModel):
-    snr_db: float | None = 30.0
+    snr_db: float | None = 30.0  # mean signal power over the noise's; none: noise-free
 
 
 class RadarSpec(StrictModel):

@@ -26,7 +26,11 @@ def fmcw_frequencies(start_hz: float, slope_hz_per_s: float, sample_rate_hz: flo
 
 
 def range_resolution_m(bandwidth_hz: float) -> float:
-    """c / (2 B) [m]."""
+    """c / (2 B) [m].
+
+    >>> round(range_resolution_m(4e9), 5)  # the near-77g radar's 4 GHz
+    0.03747
+    """
     return SPEED_OF_LIGHT / (2 * bandwidth_hz)
 
 
@@ -36,7 +40,11 @@ def cross_range_resolution_m(wavelength_m: float, range_m: float, aperture_m: fl
 
 
 def unambiguous_range_m(frequency_step_hz: float) -> float:
-    """c / (2 delta_f) [m]: range differences beyond it alias."""
+    """c / (2 delta_f) [m]: range differences beyond it alias.
+
+    >>> round(unambiguous_range_m(4e9 / 16), 3)  # 16 frequencies over 4 GHz
+    0.6
+    """
     return SPEED_OF_LIGHT / (2 * frequency_step_hz)
 
 

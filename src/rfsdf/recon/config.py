@@ -47,7 +47,7 @@ class InitConfig(StrictModel):
     method: Literal["mf", "clean", "sphere"] = "clean"
     # "auto": CLEAN's residual floor (CleanResult.residual_floor), so the threshold follows the
     # radar and the scene (0.063 on the demo, 0.024 on the garage, where a fixed 0.06 lost the
-    # glass ball; README, "The data-derived threshold"); or a fraction of the peak amplitude
+    # glass ball; docs/results/demo-quality.md, "The data-derived threshold"); or a fraction of the peak amplitude
     threshold: float | str = Field("auto", description="inside needs amplitude >= threshold * peak ...")
     local_threshold: float = Field(0.5, ge=0, lt=1, description="... and >= local_threshold * local peak")
     window_m: PositiveFloat = 0.03  # edge of the local-peak window [m]
@@ -56,22 +56,22 @@ class InitConfig(StrictModel):
     lr: PositiveFloat = 1e-3
     batch: PositiveInt = 8192
     # share of each batch drawn within a voxel of the target's zero set: with a uniform batch
-    # the 2.5 cm metal ball got ~30 points a step and half its surface (README, Quality)
+    # the 2.5 cm metal ball got ~30 points a step and half its surface (docs/results/demo-quality.md)
     near_share: float = Field(0.25, ge=0, le=1)
     # the warm start's own Eikonal weight: the image it fits is rough, and at the fit's
-    # lower weight the warm start got worse (README, "Quality on the default demo")
+    # lower weight the warm start got worse (docs/results/demo-quality.md)
     eikonal_weight: NonNegativeFloat = 0.01
     # remove from the detection the voxels in front of a view's range ridge (the blob's half
     # that stands before the seen face; radar.detection.in_front_of_ridges)
     carve_front: bool = True
     # remove the detections that no view shows as more than a range sidelobe of a brighter
     # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
-    # centimetres off the objects (docs/quality-history.md, "Range-sidelobe blanking")
+    # centimetres off the objects (docs/results/quality-history.md, "Range-sidelobe blanking")
     blank_range_sidelobes: bool = True
     # turn the faces the views see towards the power-weighted mean bisector of those views
     # (radar.specular.specular_normals): the detection's boundary has the blur's shape, not
     # the surface's, and its normals on the seen faces were 42 degrees off (12 with 0.01;
-    # README, "Normals from the views"); 0 turns it off
+    # docs/results/demo-quality.md, "Normals from the views"); 0 turns it off
     normal_weight: NonNegativeFloat = 0.01
 
     @field_validator("threshold", mode="before")
@@ -147,7 +147,7 @@ class TrainConfig(StrictModel):
     material_lr_scale: PositiveFloat = 100.0
     # f is frozen for this share of the steps while Gamma adapts: started at the true scene,
     # the fit drifts 1.8 mm without the delay, 0.4 mm with 0.4; from the carved, blanked warm
-    # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (docs/quality-history.md)
+    # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (docs/results/quality-history.md)
     geometry_delay: float = Field(0.7, ge=0, lt=1)
     weight_decay: NonNegativeFloat = 0.0
     checkpoint_every: PositiveInt = 50

@@ -31,7 +31,7 @@ __all__ = ["HybridField", "TRACE_STEP", "RANGE_RESOLUTIONS", "residual_amplitude
 
 TRACE_STEP = 0.5
 RANGE_RESOLUTIONS = 2.0  # the residual's default amplitude, in range resolutions c / 2B
-PRIOR_WEIGHT = 1.0  # of the residual's prior against the profile loss (fit_hybrid_profiles; README)
+PRIOR_WEIGHT = 1.0  # of the residual's prior against the profile loss (fit_hybrid_profiles; docs/guide/rooms.md)
 
 
 def residual_amplitude_m(bandwidth_hz: float, range_resolutions: float = RANGE_RESOLUTIONS) -> float:

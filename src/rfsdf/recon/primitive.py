@@ -12,7 +12,7 @@ onto f = 0 (``recon/surface.py``), as the neural surface moves with its weights.
 The loss compares RMS amplitudes over cubes of voxels (``sampling.pooled_amplitude``), and
 the cubes shrink from ``cell_voxels_start`` to ``cell_voxels`` over the fit: a coarse to
 fine schedule over the image grid, since a surface more than lambda/4 off sees the phase of
-its own glint wrap (the tiny neural fit's 22 mm ripple minimum, README "Reproducibility").
+its own glint wrap (the tiny neural fit's 22 mm ripple minimum, docs/guide/reproducibility.md).
 """
 
 from __future__ import annotations

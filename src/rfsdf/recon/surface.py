@@ -16,7 +16,7 @@ training graph (second derivatives only at the refresh, detached); its normals t
    surface moved along its normal. Without it a sphere's glint would *brighten* as it
    shrinks (its samples crowd into the Fresnel zone while each keeps its old area, amplitude
    ~ 1/R instead of ~ R), and a too-dim bright ball was pulled inward until it vanished
-   (docs/quality-history.md, "The area term").
+   (docs/results/quality-history.md, "The area term").
 
 Area weights follow from the coarea formula: the kept cells fill a slab of thickness
 h / |g0| around the surface, so each stands for an area h^2 |g0| (unbiased for any f, not
@@ -27,8 +27,8 @@ lattice, like the simulator's random surface samples).
    the loss can turn a facet, not only move it. The specular lobe makes a glint's direction
    depend on its normal far more than on its position (a facet tilted by 20 degrees sends its
    mirror direction 40 degrees away), and a fit that could only move the samples along
-   frozen normals left the warm start's 40-degree normal errors where they were (README,
-   "Normals from the views"). It costs one double backward through f at the samples.
+   frozen normals left the warm start's 40-degree normal errors where they were
+   (docs/results/demo-quality.md, "Normals from the views"). It costs one double backward through f at the samples.
 
 Why this sampler: it finds every piece of surface the voxel grid sees, including thin
 ones and small components, with no mesh; on an analytic sphere its points lie on the

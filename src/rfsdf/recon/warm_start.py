@@ -17,7 +17,7 @@ drywall) start dim instead of being explained away by moving their surfaces.
 On the demo scene the local rule is what makes the start useful: marching cubes on the
 CLEAN image cut this way scores Chamfer-L1 5.91 mm (F 0.59), against 8.67 mm for the best
 global threshold of the same image and 9.72 mm for the best global threshold of the MF
-image (README, "Quality on the default demo"); ``benchmarks/detection_settings.py`` scores
+image (docs/results/demo-quality.md); ``benchmarks/detection_settings.py`` scores
 the closed target itself for other local thresholds and closings.
 """
 
