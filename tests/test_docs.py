@@ -8,6 +8,7 @@ PATH. ```text``` blocks are shown, not run (a full-size run, a cluster address).
 """
 
 import importlib.util
+import json
 import os
 import re
 import subprocess
@@ -116,3 +117,10 @@ def test_a_tutorials_commands_run_as_written(page, tmp_path):
     assert ran > 0
     missing = [name for name in OUTPUTS[page.name] if not (tmp_path / name).is_file()]
     assert not missing, f"{page.name} did not write {missing}"
+    if page.name == "own-scene.md":  # the demo scored the scene file's own objects, by name
+        metrics = json.loads((tmp_path / "shelf-demo" / "metrics.json").read_text())
+        assert set(metrics["methods"]["neural"]["objects"]) == {"can", "block", "pane"}
+    if page.name == "room.md":  # as the page says: both walls within a centimetre from 10 cm off
+        for parameter in json.loads((tmp_path / "corner-fit" / "primitive.json").read_text())["free"]:
+            errors = [abs(fitted - truth) for fitted, truth in zip(parameter["fitted"], parameter["truth"])]
+            assert max(errors) < 0.01, parameter

@@ -98,10 +98,13 @@ def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_f
     assert summary["rows"] == json.loads(json.dumps(on_ray))
 
     # A sweep killed during its second job: the rerun reuses the first, runs only the
-    # second (reading its data back and continuing its fit from the checkpoint left).
+    # second (reading its data back and reusing its finished fit from the checkpoint left).
     (tmp_path / "pool" / jobs[1].name / "metrics.json").unlink()
+    fit_log = tmp_path / "pool" / jobs[1].name / "run" / "log.csv"
+    steps_logged = fit_log.read_text().count("\n")
     rerun = run_sweep(jobs, tmp_path / "pool", workers=2, log=lambda _: None)
     assert [r["status"] for r in rerun] == ["reused", "done", "failed"]
+    assert fit_log.read_text().count("\n") == steps_logged  # the finished fit was reused, not run again
     assert _metrics(rerun, tmp_path / "pool") == _metrics(pool, tmp_path / "pool")
 
 
