@@ -31,12 +31,13 @@ from .fast_imaging import fast_adjoint
 from .imaging import imaging_method
 from .operator import SensingOperator
 
-__all__ = ["FLOOR_QUANTILE", "CleanResult", "clean_view", "clean_image"]
+__all__ = ["FLOOR_QUANTILE", "MAX_COMPONENTS", "CleanResult", "clean_view", "clean_image"]
 
 # The residual floor is read at the 99th percentile of the voxels, a 1 % false-alarm rate of a
 # CFAR detector: on the default demo it is 0.063 of the peak amplitude, on the 36-view radar
 # 0.125, the thresholds a sweep against the truth picks on each (docs/results/demo-quality.md).
 FLOOR_QUANTILE = 0.99
+MAX_COMPONENTS = 300  # per view, unless the residual falls below stop_fraction of its peak first
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ def _window(grid: Grid, centre: int, radius: int) -> torch.Tensor:
 
 
 def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float = 0.3,
-               stop_fraction: float = 0.05, max_components: int = 300, window_m: float = 0.03,
+               stop_fraction: float = 0.05, max_components: int = MAX_COMPONENTS, window_m: float = 0.03,
                major_every: int = 50, method: str = "auto", device=None):
     """CLEAN one view: (component indices (C,), amplitudes (C,) complex, residual image (N,) complex).
 
