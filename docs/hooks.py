@@ -1,10 +1,14 @@
-"""MkDocs hook: the file-format reference, generated from the pydantic models that read the files.
+"""MkDocs hooks: the file-format reference, generated from the pydantic models that read the
+files, and the provenance of every measured result (the commit that last wrote it).
 
 A page line ``<!-- format: module.path:ModelName -->`` becomes one table per model (the model
 and every model it nests): key, type, default, allowed values, and what it means (the
 field's ``description``, else the comment written beside or above the field in the source).
 So a field added to a model is in the reference at the next build, and the test suite checks
 that every field is (``tests/test_docs.py``).
+
+A page line ``<!-- provenance -->`` becomes a table of every file under ``PROVENANCE``: the
+commit that last changed it, its date and its message, from ``git log``.
 """
 
 from __future__ import annotations
@@ -12,18 +16,41 @@ from __future__ import annotations
 import importlib
 import inspect
 import re
+import subprocess
 import types
 import typing
+from pathlib import Path
 
 import pydantic
 
 MARKER = re.compile(r"^<!-- format: ([\w.]+):(\w+) -->$", re.MULTILINE)
+PROVENANCE_MARKER = "<!-- provenance -->"
+PROVENANCE = ("benchmarks/results/*.json", "docs/figures/*.png", "docs/studies/*.png")
+ROOT = Path(__file__).resolve().parents[1]
 _CONSTRAINTS = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"), ("min_length", "length >="),
                 ("max_length", "length <="))
 
 
 def on_page_markdown(markdown: str, page, config, files) -> str:  # noqa: ARG001 (the hook's signature)
-    return MARKER.sub(lambda match: format_tables(match.group(1), match.group(2)), markdown)
+    markdown = MARKER.sub(lambda match: format_tables(match.group(1), match.group(2)), markdown)
+    return markdown.replace(PROVENANCE_MARKER, provenance_table()) if PROVENANCE_MARKER in markdown else markdown
+
+
+def provenance_table() -> str:
+    """Markdown table: each result file, and the commit (hash, date, message) that last changed it."""
+    rows = ["| file | commit | date | what the commit says |", "|---|---|---|---|"]
+    for pattern in PROVENANCE:
+        for path in sorted(ROOT.glob(pattern)):
+            name = path.relative_to(ROOT).as_posix()
+            log = subprocess.run(["git", "log", "-1", "--format=%h%x09%ad%x09%s", "--date=short", "--", name],
+                                 cwd=ROOT, capture_output=True, text=True).stdout.strip()
+            commit, date, subject = log.split("\t", 2) if log.count("\t") >= 2 else ("not committed", "", "")
+            rows.append(f"| `{name}` | `{commit}` | {date} | {_cell(_shorten(subject, 160))} |")
+    return "\n".join(rows)
+
+
+def _shorten(text: str, length: int) -> str:
+    return text if len(text) <= length else text[:length - 3].rsplit(" ", 1)[0] + " ..."
 
 
 def format_tables(module: str, name: str) -> str:

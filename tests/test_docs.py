@@ -92,6 +92,16 @@ def test_the_api_reference_documents_the_public_layers(site):
     assert not missing, f"not in the API reference: {missing}"
 
 
+def test_every_measured_result_names_the_commit_that_wrote_it(site):
+    """The results page lists each file under benchmarks/results/ and the figures with a commit
+    hash, read from git (the suite runs in a checkout)."""
+    page = _text(site / "results" / "benchmarks" / "index.html")
+    files = [*(ROOT / "benchmarks" / "results").glob("*.json"), *(ROOT / "docs" / "figures").glob("*.png")]
+    rows = {name: re.search(rf"<code>{re.escape(name)}</code></td>\s*<td><code>([0-9a-f]{{7,}})</code>", page)
+            for name in (path.relative_to(ROOT).as_posix() for path in files)}
+    assert files and not [name for name, row in rows.items() if row is None]
+
+
 def _hooks():
     spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
     module = importlib.util.module_from_spec(spec)
