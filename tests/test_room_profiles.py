@@ -11,9 +11,9 @@ import trimesh
 from click.testing import CliRunner
 
 from rfsdf.cli import main
-from rfsdf.radar import load_radar, simulate, write_measurements
+from rfsdf.radar import SPEED_OF_LIGHT, load_radar, simulate, write_measurements
 from rfsdf.recon.primitive import PrimitiveField
-from rfsdf.recon.range_profile import C_M_S, data_profiles, model_profiles, path_axis, profile_loss
+from rfsdf.recon.range_profile import data_profiles, model_profiles, path_axis, profile_loss
 from rfsdf.scene import Scene
 from rfsdf.scene_model import SceneModel
 from rfsdf.scene_spec import SceneSpec
@@ -56,7 +56,7 @@ def test_a_walls_profile_peaks_at_its_image_source_in_data_and_model(room_data):
     for profiles in (measured, modelled.detach()):
         assert float(path[profiles[east].argmax()]) == pytest.approx(expected_east, abs=0.01)
         assert float(path[profiles[south].argmax()]) == pytest.approx(expected_south, abs=0.01)
-    assert C_M_S / acq.bandwidth_hz / 2 == pytest.approx(0.0214, abs=1e-4)  # room-60g's range resolution
+    assert SPEED_OF_LIGHT / acq.bandwidth_hz / 2 == pytest.approx(0.0214, abs=1e-4)  # room-60g's range resolution
 
 
 def test_the_profile_path_gradient_is_the_sdfs_parameter_derivative(room_data):
@@ -118,7 +118,7 @@ def test_reconstruct_fits_a_hybrid_model_and_its_residual_stays_within_two_range
     mesh = trimesh.load(tmp_path / "run" / "mesh.ply")
     primitive = Scene(SceneSpec.model_validate(tomllib.loads((tmp_path / "run" / "fitted-scene.toml").read_text())))
     distance = primitive.sdf(torch.as_tensor(mesh.vertices)).abs()
-    assert float(distance.max()) < 2 * C_M_S / (2 * 7e9)
+    assert float(distance.max()) < 2 * SPEED_OF_LIGHT / (2 * 7e9)
 
 
 def test_hybrid_needs_the_range_profiles(room_data, tmp_path):

@@ -44,15 +44,14 @@ from ..geometry import sphere_trace
 from ..geometry.differential import gradient
 from ..materials import class_permittivities, mixture_fresnel
 from ..progress import progress_bar
-from ..radar import Measurements
+from ..radar import SPEED_OF_LIGHT, Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
 from ..scene_model import SceneModel
 from .primitive import PrimitiveField, PrimitiveFit
 
-__all__ = ["C_M_S", "ProfileSettings", "path_axis", "data_profiles", "model_profiles", "profile_loss",
+__all__ = ["ProfileSettings", "path_axis", "data_profiles", "model_profiles", "profile_loss",
            "fit_primitive_profiles", "fit_profiles"]
 
-C_M_S = 299_792_458.0
 _HANN_FWHM = 1.44  # Hann window's main-lobe width at half power, in units of c / B (path)
 # a hit votes only when its tangent plane's foot point lies on the surface (within this share
 # of its distance): a face seen edge-on has its foot beyond its edge and no specular return
@@ -64,7 +63,7 @@ def path_axis(measurements: Measurements, step_m: float, near_m: float) -> torch
     """(P,) round-trip path lengths [m] from 2 ``near_m`` to the unambiguous path c / delta f,
     ``step_m`` apart."""
     f = measurements.acquisition.frequencies_hz
-    unambiguous = C_M_S / float(f[1] - f[0]) if len(f) > 1 else 2 * near_m + step_m
+    unambiguous = SPEED_OF_LIGHT / float(f[1] - f[0]) if len(f) > 1 else 2 * near_m + step_m
     return torch.arange(2 * near_m, unambiguous, step_m, dtype=torch.float64)
 
 
@@ -73,7 +72,7 @@ def data_profiles(measurements: Measurements, path_m: torch.Tensor) -> torch.Ten
     y = measurements.data.to(torch.complex128)
     f = measurements.acquisition.frequencies_hz.double()
     window = torch.hann_window(len(f), periodic=False, dtype=torch.float64) if len(f) > 2 else torch.ones(len(f))
-    steer = torch.exp(1j * 2 * math.pi * f[:, None] * path_m[None, :] / C_M_S)  # (K, P)
+    steer = torch.exp(1j * 2 * math.pi * f[:, None] * path_m[None, :] / SPEED_OF_LIGHT)  # (K, P)
     profiles = (y * window).reshape(-1, len(f)) @ steer
     return (profiles.abs() ** 2).reshape(*y.shape[:3], -1).mean((1, 2))
 
@@ -162,7 +161,7 @@ def _splat(centres_m: torch.Tensor, weights: torch.Tensor, view: torch.Tensor, p
 
 def _psf_sigma_m(measurements: Measurements) -> float:
     """The Gaussian sigma [m path] of the Hann-windowed profile's main lobe, c / B x 1.44 / 2.355."""
-    return _HANN_FWHM * C_M_S / measurements.acquisition.bandwidth_hz / (2 * math.sqrt(2 * math.log(2)))
+    return _HANN_FWHM * SPEED_OF_LIGHT / measurements.acquisition.bandwidth_hz / (2 * math.sqrt(2 * math.log(2)))
 
 
 def _amplitudes(profiles: torch.Tensor) -> torch.Tensor:
