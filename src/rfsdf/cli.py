@@ -418,13 +418,11 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
     if calibrator is not None:
-        from .atomic import atomic_path
-        from .jsonio import to_json
+        from .jsonio import write_json
         from .recon.calibration import CALIBRATION_NAME, check_reference
 
         calibration = check_reference(trainer, calibrator)
-        with atomic_path(out / CALIBRATION_NAME) as tmp:
-            tmp.write_text(to_json(calibration.as_dict()))
+        write_json(out / CALIBRATION_NAME, calibration.as_dict())
         click.echo(calibration.text())
         if calibration.warning() is not None:
             click.echo(f"warning: {calibration.warning()}", err=True)
@@ -437,11 +435,8 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     ``scene_name`` with every length free, ``start_offset`` off) to the images or the range
     profiles (``fit_to``; the hybrid: profiles, then its residual, rfsdf.recon.hybrid), write
     its parameters, the fitted scene file and its mesh into ``out``."""
-    import tomli_w
-
-    from .atomic import atomic_path
     from .geometry import Grid
-    from .jsonio import to_json
+    from .jsonio import write_json
     from .mesh import export_mesh
     from .radar import read_measurements
     from .recon import Problem
@@ -471,10 +466,8 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
         fit = fit_primitive(Problem(measurements, grid, str(data)), model, steps=steps, device=device, progress=True)
     fitted = Scene(model.fitted_spec(fit.field.fitted()), model.base_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out / "primitive.json") as tmp:
-        tmp.write_text(to_json(fit.as_dict(truth)))
-    with atomic_path(out / "fitted-scene.toml") as tmp:
-        tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
+    write_json(out / "primitive.json", fit.as_dict(truth))
+    fitted.write_toml(out / "fitted-scene.toml")
     mesh = fitted.ground_truth_mesh()
     if hybrid:
         mesh = project_mesh(fit.field.frozen_sdf(), mesh)

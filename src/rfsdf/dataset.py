@@ -21,7 +21,7 @@ from typing import Callable
 import tomli_w
 
 from .atomic import atomic_path
-from .jsonio import to_json
+from .jsonio import write_json
 from .parallel import error_line, map_tasks, threads_per_worker
 from .random_scenes import random_scene_spec
 
@@ -103,6 +103,5 @@ def simulate_dataset(count: int, out, *, radar: str = "near-77g", base_seed: int
     tasks = [(f"scene-{i:05d}", base_seed + i, radar, str(out), threads, device) for i in range(count)]
     rows = map_tasks(simulate_scene_file, tasks, workers=workers, ray_address=ray_address, cpus_per_task=threads,
                      on_result=lambda i, row: log(f"{row['name']}: {row['status']} {row['error']}".rstrip()))
-    with atomic_path(out / "dataset.json") as tmp:
-        tmp.write_text(to_json({"radar": radar, "base_seed": base_seed, "scenes": rows}))
+    write_json(out / "dataset.json", {"radar": radar, "base_seed": base_seed, "scenes": rows})
     return rows

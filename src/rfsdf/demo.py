@@ -34,13 +34,12 @@ from typing import Callable
 import numpy as np
 import torch
 
-from .atomic import atomic_path
 from .baseline import best_threshold_mesh, detection_mesh
 from .config import validate
 from .device import resolve_device
 from .errors import RfsdfError
 from .geometry import Grid
-from .jsonio import to_json
+from .jsonio import to_json, write_json
 from .material_estimates import (
     MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, scene_reference,
 )
@@ -154,8 +153,7 @@ def claim_folder(out: Path, settings) -> None:
             raise RfsdfError(f"{out}: holds a demo of other settings ({changed}); choose another --out")
     elif any((out / name).exists() for name in ("measurements.h5", "image.h5", "run")):
         raise RfsdfError(f"{out}: holds files of another run; choose another --out")
-    with atomic_path(stamp) as tmp:
-        tmp.write_text(to_json(wanted))
+    write_json(stamp, wanted)
 
 
 @dataclass(frozen=True)
@@ -326,8 +324,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     result = DemoResult(scene.name, radar.name, grid.shape, settings.voxel_m * 1e3, torch.get_num_threads(),
                         len(fit.log), round(fit.seconds_per_step, 3), methods,
                         {**timings, "total_s": round(sum(timings.values()), 2)}, materials)
-    with atomic_path(out / "metrics.json") as tmp:
-        tmp.write_text(to_json(result.as_dict()))
+    write_json(out / "metrics.json", result.as_dict())
     return result
 
 

@@ -1,11 +1,14 @@
-"""JSON that every parser reads: NaN and infinities become null (json.dumps writes bare NaN)."""
+"""JSON that every parser reads: NaN and infinities become null (json.dumps writes bare NaN);
+written atomically."""
 
 from __future__ import annotations
 
 import json
 import math
 
-__all__ = ["to_json"]
+from .atomic import atomic_path
+
+__all__ = ["to_json", "write_json"]
 
 
 def _finite(value):
@@ -21,3 +24,9 @@ def _finite(value):
 def to_json(value, *, indent: int | None = 2) -> str:
     """Strict JSON text of ``value`` (dicts, lists, numbers, strings), non-finite floats as null."""
     return json.dumps(_finite(value), indent=indent, allow_nan=False)
+
+
+def write_json(path, value) -> None:
+    """Write :func:`to_json` of ``value`` to ``path``, atomically (a crash leaves no half file)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(to_json(value))

@@ -22,20 +22,17 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-import tomli_w
-
-from .atomic import atomic_path
 from .demo import QUICK, DemoSettings, claim_folder, load_scene_and_radar, require_demo_images, run_demo
 from .errors import RfsdfError
-from .jsonio import to_json
 from .geometry.mesh_sdf import load_watertight_mesh
+from .jsonio import write_json
 from .mesh import export_mesh
 from .metrics import evaluate_scene, seen_surface_errors, specular_feet
 from .radar import read_measurements, simulate, write_measurements
 from .radar.coverage import observed_mask
+from .radar.waveform import range_resolution_m
 from .recon import load_field
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
-from .radar.waveform import range_resolution_m
 from .recon.range_profile import ProfileSettings, fit_primitive_profiles
 from .scene import Scene
 from .scene_model import SceneModel, load_scene_model
@@ -127,8 +124,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
               settings.start_offset_m if settings.scene_model is None else None, "seed": settings.seed,
               "models": {name: rows[name] for name in MODELS if name in rows},
               "timings_s": {**timings, "total_s": round(sum(timings.values()), 2)}}
-    with atomic_path(out / "metrics.json") as tmp:
-        tmp.write_text(to_json(result))
+    write_json(out / "metrics.json", result)
     return result
 
 
@@ -163,8 +159,7 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     if name == "hybrid":  # the primitive mesh moved onto the residual's zero set
         mesh, sdf = project_mesh(fit.field.sdf, mesh), fit.field.frozen_sdf()
     folder.mkdir(parents=True, exist_ok=True)
-    with atomic_path(folder / "fitted-scene.toml") as tmp:
-        tmp.write_text(tomli_w.dumps(fitted.spec.model_dump(mode="json", exclude_none=True)))
+    fitted.write_toml(folder / "fitted-scene.toml")
     export_mesh(mesh, folder / "mesh.ply")
     free = fit.free_table(scene.spec)
     row = {**score(mesh, sdf), "mesh": MODEL_MESHES[name], "parameters": sum(len(p["start"]) for p in free),
@@ -173,8 +168,7 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     if name == "hybrid":
         row["residual_amplitude_m"] = fit.field.amplitude_m
         row["residual_weights"] = sum(p.numel() for p in fit.field.residual_parameters())
-    with atomic_path(folder / "model.json") as tmp:
-        tmp.write_text(to_json(row))
+    write_json(folder / "model.json", row)
     return row
 
 
@@ -191,8 +185,7 @@ def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, sco
     field = load_field(folder / "run")
     row = {**score(load_watertight_mesh(folder / "neural.ply"), field.sdf), "mesh": MODEL_MESHES["neural"],
            "parameters": sum(p.numel() for p in field.parameters()), "fit_s": result.timings_s["fit_s"]}
-    with atomic_path(folder / "model.json") as tmp:
-        tmp.write_text(to_json(row))
+    write_json(folder / "model.json", row)
     return row
 
 

@@ -12,10 +12,12 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import tomli_w
 import torch
 import trimesh
 
 from . import geometry as geo
+from .atomic import atomic_path
 from .config import preset_names, read_toml, resolve_preset, validate
 from .errors import RfsdfError
 from .limits import input_file
@@ -424,6 +426,11 @@ class Scene:
                 changed = True
             objects.append(spec)
         return Scene(self.spec.model_copy(update={"objects": objects}), self.base_dir) if changed else self
+
+    def write_toml(self, path) -> None:
+        """This scene's spec as a scene TOML file at ``path``, atomically (:func:`load_scene` reads it)."""
+        with atomic_path(path) as tmp:
+            tmp.write_text(tomli_w.dumps(self.spec.model_dump(mode="json", exclude_none=True)))
 
     def summary(self) -> str:
         """A few lines describing the scene for people."""

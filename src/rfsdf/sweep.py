@@ -47,7 +47,7 @@ from .atomic import atomic_path
 from .config import StrictModel, merge_tables, read_toml, validate
 from .demo import QUICK, SETTINGS_NAME, DemoSettings, load_scene_and_radar, run_demo
 from .errors import RfsdfError
-from .jsonio import to_json
+from .jsonio import to_json, write_json
 from .parallel import error_line, map_tasks, threads_per_worker
 from .recon import ReconConfig
 
@@ -228,8 +228,7 @@ def _status_line(row: dict) -> str:
 def write_summary(rows: list[dict], out: Path) -> None:
     """summary.json, summary.csv (the union of every row's columns) and summary.png."""
     columns = list(dict.fromkeys(key for row in rows for key in row))
-    with atomic_path(out / "summary.json") as tmp:
-        tmp.write_text(to_json({"columns": columns, "rows": rows}))
+    write_json(out / "summary.json", {"columns": columns, "rows": rows})
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=columns, restval="")
     writer.writeheader()

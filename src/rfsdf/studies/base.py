@@ -9,8 +9,7 @@ import dataclasses
 from pathlib import Path
 from types import ModuleType
 
-from ..atomic import atomic_path
-from ..jsonio import to_json
+from ..jsonio import write_json
 
 __all__ = ["run_study"]
 
@@ -23,8 +22,7 @@ def run_study(study: ModuleType, out, *, quick: bool = False) -> tuple[Path, Pat
     settings = study.QUICK if quick else study.Settings()
     result = study.run(settings)
     json_path, png_path = out / f"{study.NAME}.json", out / f"{study.NAME}.png"
-    with atomic_path(json_path) as tmp:
-        tmp.write_text(to_json({"study": study.NAME, "quick": quick, "settings": dataclasses.asdict(settings),
-                                "result": dataclasses.asdict(result)}))
+    write_json(json_path, {"study": study.NAME, "quick": quick, "settings": dataclasses.asdict(settings),
+                           "result": dataclasses.asdict(result)})
     study.plot(result, png_path)
     return json_path, png_path
