@@ -206,17 +206,20 @@ class SensingOperator:
     @torch.no_grad()
     def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False,
                weight: Callable[[slice, slice], torch.Tensor] | None = None) -> torch.Tensor:
-        """A c for per-view c (V, Q), times ``weight`` (see forward_weighted): (V, T, R, K)."""
-        blocks: dict[int, list[torch.Tensor]] = {}
+        """A c for per-view c (V, Q), times ``weight`` (see forward_weighted): (V, T, R, K).
+        Each chunk's data are added into one (V, K, T, R) sum as it comes: kept apart until
+        the end, a 10 x 10 m room's 45,680 chunks of eight views held 24 GiB (measured)."""
+        total = None
         for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A c", enabled=progress):
             u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
             cw = c[views, None, None, pts]
             if weight is not None:
                 cw = cw * weight(views, pts)[:, :, None, :].to(cw.dtype)
             y = torch.matmul(u * cw, w.transpose(-1, -2))  # (v, K, T, R)
-            blocks.setdefault(views.start, []).append(y)
-        y = torch.cat([sum(parts) for _, parts in sorted(blocks.items())], dim=0)
-        return y.permute(0, 2, 3, 1).contiguous()
+            if total is None:
+                total = torch.zeros((self.acq.shape[0], *y.shape[1:]), dtype=y.dtype, device=y.device)
+            total[views] += y
+        return total.permute(0, 2, 3, 1).contiguous()
 
     @torch.no_grad()
     def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False) -> torch.Tensor:
