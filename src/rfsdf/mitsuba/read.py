@@ -135,10 +135,12 @@ class _Reader:
             self.fail(element, f"{key}={text!r} is not finite")
         return value
 
-    def vector(self, element: ET.Element, key: str = "value") -> np.ndarray:
-        """x, y, z attributes, or ``key`` holding three numbers (commas or spaces)."""
+    def vector(self, element: ET.Element, key: str = "value", missing: float = 0.0) -> np.ndarray:
+        """x, y, z attributes (an absent one is ``missing``: 1 for a scale, as Mitsuba 3
+        reads it, 0 otherwise), or ``key`` holding three numbers (commas or spaces)."""
         if element.get(key) is None and any(element.get(axis) is not None for axis in "xyz"):
-            return np.array([self.number(element, axis) if element.get(axis) is not None else 0.0 for axis in "xyz"])
+            return np.array([self.number(element, axis) if element.get(axis) is not None else missing
+                             for axis in "xyz"])
         parts = self.attr(element, key).replace(",", " ").split()
         if len(parts) == 1:
             parts = parts * 3
@@ -317,7 +319,7 @@ class _Reader:
             if child.tag == "translate":
                 step[:3, 3] = self.vector(child)
             elif child.tag == "scale":
-                step[:3, :3] = np.diag(self.vector(child))
+                step[:3, :3] = np.diag(self.vector(child, missing=1.0))
             elif child.tag == "rotate":
                 if child.get("value") is None and child.get("x") is None and child.get("y") is None \
                         and child.get("z") is None:
