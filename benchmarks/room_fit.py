@@ -49,9 +49,9 @@ def main() -> None:
     feet = specular_feet(truth, data.acquisition)
     runs = []
     for seed in args.seeds:
-        model = SceneModel.from_scene(truth.spec, args.start_offset, seed)
+        model = SceneModel.from_scene(truth, args.start_offset, seed)
         fit = fit_primitive_profiles(data, model, steps=args.steps)
-        fitted = Scene(model.fitted_spec(fit.field.fitted()))
+        fitted = Scene(fit.fitted_spec())
         start_error = Scene(model.spec).sdf(feet).abs()
         error = fitted.sdf(feet).abs()
         runs.append({"seed": seed, "fit_s": round(fit.seconds, 1), "start_mean_m": float(start_error.mean()),

@@ -42,7 +42,7 @@ def main() -> None:
                                    max_surface_samples=args.max_samples)
     start = None
     if args.model_scene is not None:
-        start = SceneModel.from_scene(load_scene(args.model_scene).spec, args.start_offset, args.seed)
+        start = SceneModel.from_scene(load_scene(args.model_scene), args.start_offset, args.seed)
     folder = args.work / (stem if args.model_scene is None else f"{stem}-from-{Path(args.model_scene).stem}")
     result = run_model_demo(folder, settings, args.models, start=start)
     print(models_table(result))

@@ -192,3 +192,30 @@ def test_trilinear_is_exact_for_linear_fields_and_clamps_at_the_box(rng):
     clamped = lookup(beyond)
     torch.testing.assert_close(clamped[0], clamped[1])
     assert lookup(inner.float()).dtype == torch.float32
+
+
+def test_a_cuboid_mesh_is_recognised_with_its_frame_and_any_other_mesh_is_not():
+    import trimesh
+
+    from rfsdf.geometry.cuboids import cuboid_of
+
+    turn = trimesh.transformations.rotation_matrix(0.4, [1, 2, 3])
+    box = trimesh.creation.box(extents=(4.0, 3.0, 2.5)).subdivide()  # faces split: still the box
+    box.apply_transform(turn)
+    box.apply_translation((1.0, -2.0, 1.25))
+    found = cuboid_of(box)
+    np.testing.assert_allclose(found.center_m, [1.0, -2.0, 1.25], atol=1e-12)
+    np.testing.assert_allclose(found.half_extents_m, [2.0, 1.5, 1.25], atol=1e-12)
+    np.testing.assert_allclose(np.abs(found.axes @ turn[:3, :3]), np.eye(3), atol=1e-12)  # the box's own axes
+    assert np.linalg.det(found.axes) == pytest.approx(1.0)
+    quad = trimesh.Trimesh([[-1, -0.5, 2], [1, -0.5, 2], [1, 0.5, 2], [-1, 0.5, 2]], [[0, 1, 2], [0, 2, 3]])
+    wall = cuboid_of(quad)
+    assert wall.flat and sorted(wall.half_extents_m[:2]) == [0.5, 1.0] and wall.center_m.tolist() == [0, 0, 2]
+    np.testing.assert_allclose(np.abs(wall.axes[2]), [0, 0, 1])
+    ell = trimesh.Trimesh([[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]],
+                          [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]])
+    open_box = trimesh.creation.box()
+    open_box.update_faces(np.arange(10))  # one face gone
+    two_quads = trimesh.util.concatenate([quad, quad.copy().apply_translation((0, 0, 1))])
+    for other in (trimesh.creation.icosphere(), trimesh.creation.cylinder(1.0, 2.0), ell, open_box, two_quads):
+        assert cuboid_of(other) is None

@@ -391,7 +391,9 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     """A parameter table with no start, a start outside its bounds, a free parameter on a
     shape that has no such parameter or outside the objects' shapes, an unknown key, a model
     that does not overlap the data's box (or, in the demo, the scene's), a model with nothing
-    free, a model file with the neural fit: one error line naming the file and field, exit 2,
+    free, a model file with the neural fit, a bad free material (free not a boolean, fewer
+    than two classes, a start outside them, a held one without a start, an unknown or
+    repeated class, an unknown key): one error line naming the file and field, exit 2,
     nothing written."""
     model = tmp_path / "m.toml"
     head = 'name = "m"\n[bounds]\nlower_m = [-0.05, -0.05, -0.05]\nupper_m = [0.05, 0.05, 0.05]\n'
@@ -408,6 +410,18 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
         model.write_text(head + ball + body)
         line = _refused(args, tmp_path)
         assert f"{model}: " in line and expected in line, line
+    for material, expected in (
+            ('{ start = "metal", free = "yes" }', "objects[0].material.free: expected true or false"),
+            ('{ classes = ["metal"] }', "objects[0].material.classes: expected a list of at least two material names"),
+            ('{ start = "brick", classes = ["metal", "wood"] }', "objects[0].material.start: 'brick' is not among"),
+            ('{ free = false }', "objects[0].material: a held material needs a start"),
+            ('{ classes = ["metal", "unobtainium"] }', "objects[0].material: unknown material 'unobtainium'"),
+            ('{ classes = ["metal", "pec"] }', "objects[0].material.classes: a class is named twice"),
+            ('{ start = "metal", prior = 1 }', "objects[0].material: unknown key(s) prior"),
+    ):
+        model.write_text(head + ball.replace('"metal"', material, 1))
+        line = _refused(args, tmp_path)
+        assert f"{model}: " in line and expected in line, line
     model.write_text(head.replace("lower_m = [-0.05, -0.05, -0.05]", "lower_m = { start = [-0.05, -0.05, -0.05] }")
                      + ball)
     assert "bounds: only the objects' shape parameters may be free" in _refused(args, tmp_path)
@@ -419,6 +433,6 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     model.write_text(head + ball)
     assert "no free parameter, so nothing to fit" in _refused(args, tmp_path)
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--scene-model", model], tmp_path)
-    assert "--scene-model and --fit-to: only with --model primitive" in line, line
+    assert "--scene-model, --free-materials and --fit-to: only with --model primitive" in line, line
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--fit-to", "profiles"], tmp_path)
-    assert "--scene-model and --fit-to: only with --model primitive" in line, line
+    assert "--scene-model, --free-materials and --fit-to: only with --model primitive" in line, line

@@ -9,9 +9,9 @@ import torch
 from rfsdf.field import RadarField
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
-    MIN_OBSERVED_FRACTION, class_accuracy, class_reflectivities, eps_of_reflectivity, object_materials,
-    point_reflectivity, reflectivity_class, scene_reference,
+    MIN_OBSERVED_FRACTION, class_accuracy, eps_of_reflectivity, object_materials, scene_reference,
 )
+from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig, Trainer, amplitude_loss

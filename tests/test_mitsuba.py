@@ -3,6 +3,7 @@
 round trip through `rfsdf scene export`. Every XML here is built by the test; Sionna is never
 needed."""
 
+import json
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -19,7 +20,8 @@ from rfsdf.errors import RfsdfError
 from rfsdf.materials import EPS0, MATERIALS, get_material
 from rfsdf.mitsuba.write import export_scene, write_ply
 from rfsdf.radar import simulate
-from rfsdf.scene import load_scene, scene_presets
+from rfsdf.scene import Scene, load_scene, scene_presets
+from rfsdf.scene_model import SceneModel, analytic_spec
 from test_hostile_inputs import _refused
 from test_rooms import _monostatic
 
@@ -140,6 +142,34 @@ def test_a_closed_room_around_the_radar_becomes_walls_whose_inner_faces_are_the_
     # 1.0 m to the ceiling at 2.5; inside the 2 cm wall beyond x = 2; 1 cm outside it
     np.testing.assert_allclose(room.objects[0].sdf(probes).detach().numpy(), [1.0, -0.01, 0.01], atol=1e-9)
     assert scene.around_radar(np.array([[9.0, 0.0, 1.0]])) is scene
+
+
+def test_meshes_that_are_boxes_are_written_as_analytic_boxes_with_the_same_sdf_and_free_lengths(tmp_path):
+    """A room mesh around the radar (a shell), a cube turned by a to_world rotation (a solid)
+    and a quad wall (a sheet) become boxes (the shell: a box less a box) whose SDF is the
+    meshes' to rounding, so the primitive model can free their lengths; a mesh that is no
+    box (a ball) stays a mesh, held."""
+    _ply(tmp_path, "room.ply", trimesh.creation.box(extents=(4.0, 3.0, 2.5)).apply_translation((0, 0, 1.25)))
+    _ply(tmp_path, "ball.ply", trimesh.creation.icosphere(radius=0.2).apply_translation((-1.0, 1.0, 1.0)))
+    path = _xml(tmp_path, f"""{ITU_CONCRETE}
+  <shape type="ply" id="mesh-room"><string name="filename" value="meshes/room.ply"/><ref id="c"/></shape>
+  <shape type="cube" id="mesh-cabinet"><transform name="to_world"><scale x="0.3" y="0.2" z="0.5"/>
+    <rotate x="1" y="1" z="0" angle="30"/><translate x="1.2" y="0.8" z="0.6"/></transform><ref id="c"/></shape>
+  <shape type="rectangle" id="mesh-board"><transform name="to_world"><scale x="0.5" y="0.4"/>
+    <rotate y="1" angle="90"/><translate x="-1.5" z="1.2"/></transform><ref id="c"/></shape>
+  <shape type="ply" id="mesh-ball"><string name="filename" value="meshes/ball.ply"/><ref id="c"/></shape>""")
+    scene = load_scene(path).around_radar(np.array([[0.0, 0.0, 1.5]]))
+    analytic = analytic_spec(scene)
+    assert [o.shape.type for o in analytic.objects] == ["difference", "box", "box", "mesh"]
+    assert analytic.objects[1].shape.transform.rotate_rad > 0  # the cabinet's own axes
+    points = torch.tensor(np.random.default_rng(0).uniform(scene.lower_m, scene.upper_m, (4000, 3)))
+    exact = Scene(analytic, scene.base_dir)
+    for mesh_object, box_object in zip(scene.objects, exact.objects):
+        np.testing.assert_allclose(box_object.sdf(points).detach().numpy(), mesh_object.sdf(points).detach().numpy(),
+                                   atol=1e-6)
+    model = SceneModel.from_scene(scene, 0.1, seed=0)
+    assert {p.name.split(".")[0] for p in model.free} == {"room", "cabinet", "board"}
+    assert model.values_in(analytic) is not None  # the truth of every free parameter
 
 
 def test_a_radar_inside_a_wall_is_one_line(tmp_path):
@@ -290,15 +320,16 @@ def test_simulate_takes_a_sionna_scene_on_the_command_line(tmp_path):
 def test_a_room_scene_is_read_around_the_radar_and_the_demo_refuses_it_before_any_work(tmp_path):
     """A closed room mesh with room-28g inside: a shell, not a block the radar stands in; the
     demo (objects about a metre across) says in one line that its images would not fit,
-    before simulating anything; the model demo, that the room's mesh has nothing to free."""
-    _ply(tmp_path, "room.ply", trimesh.creation.box(extents=(6.0, 5.0, 3.0)).apply_translation((0, 0, 1.5)))
+    before simulating anything; the model demo, that a round room's mesh (no box) has
+    nothing to free."""
+    _ply(tmp_path, "room.ply", trimesh.creation.cylinder(radius=3.0, height=3.0).apply_translation((0, 0, 1.5)))
     path = _xml(tmp_path, f'{ITU_CONCRETE}<shape type="ply" id="mesh-room"><string name="filename" '
                           'value="meshes/room.ply"/><ref id="c"/></shape>')
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--out", tmp_path / "demo"], tmp_path)
     assert "the demo's images of" in line and "--model primitive or hybrid" in line
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--model", "primitive", "--out",
                      tmp_path / "demo"], tmp_path)
-    assert "no free parameter, so nothing to fit" in line, line  # a mesh has no length to free
+    assert "no free parameter, so nothing to fit" in line, line  # a mesh that is no box has no length to free
 
 
 def test_a_toml_scene_says_how_a_surface_is_read_or_gets_one_line(tmp_path):
@@ -322,3 +353,24 @@ def test_a_toml_scene_says_how_a_surface_is_read_or_gets_one_line(tmp_path):
         else:
             with pytest.raises(RfsdfError, match=error):
                 load_scene(path)
+
+
+def test_a_sionna_scene_of_quad_walls_runs_through_the_primitive_model_demo(tmp_path):
+    """Two walls drawn as Sionna draws them (one rectangle each, with room-60g between
+    them): `demo --model primitive --quick` frees their box lengths and reports each one's
+    start, fit and truth."""
+    walls = "".join(f"""
+  <bsdf type="itu-radio-material" id="mat-{name}"><string name="type" value="{material}"/>
+    <float name="thickness" value="0.02"/></bsdf>
+  <shape type="rectangle" id="mesh-{name}"><transform name="to_world"><scale x="0.15" y="0.3"/>
+    <rotate y="1" angle="90"/><translate x="{x}" z="1.5"/></transform><ref id="mat-{name}"/></shape>"""
+                    for name, material, x in (("east", "concrete", 1.2), ("west", "metal", -0.9)))
+    path = _xml(tmp_path, walls)
+    result = CliRunner().invoke(main, ["demo", "--scene", str(path), "--radar", "room-60g", "--model", "primitive",
+                                       "--quick", "--max-samples", "60000", "--out", str(tmp_path / "demo")])
+    assert result.exit_code == 0, result.output
+    free = {p["name"]: p for p in json.loads((tmp_path / "demo" / "metrics.json").read_text())
+            ["models"]["primitive"]["free"]}
+    assert set(free) == {"east.half_extents_m", "east.center_m", "west.half_extents_m", "west.center_m"}
+    np.testing.assert_allclose(free["east.center_m"]["truth"], [1.2, 0.0, 1.5], atol=1e-6)
+    np.testing.assert_allclose(free["west.half_extents_m"]["truth"], [0.01, 0.3, 0.15], atol=1e-6)

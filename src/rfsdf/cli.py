@@ -349,6 +349,9 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,
               help="With --model primitive and no --scene-model: start from --scene with every length free and moved "
                    "by up to this much [m] (seeded).")
+@click.option("--free-materials", is_flag=True,
+              help="With --model primitive/hybrid and no --scene-model: fit every object's material of --scene too "
+                   "(undecided among metal, glass, concrete, plasterboard, wood), but its calibration_reference.")
 @click.option("--fit-to", "fit_to", type=click.Choice(["images", "profiles"]), default="images", show_default=True,
               help="With --model primitive: the data term. images: the coherent renderer on the image grid (small "
                    "scenes); profiles: each view's range profile, rendered by ray votes (rooms).")
@@ -356,8 +359,8 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
-                    model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float, fit_to: str,
-                    device: str | None):
+                    model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
+                    free_materials: bool, fit_to: str, device: str | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
     fitted-scene.toml, mesh.ply.
@@ -374,11 +377,13 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
             raise click.UsageError(f"--model {model_kind} needs --scene-model, or --scene to start from its truth")
         if model_kind == "hybrid" and fit_to != "profiles":
             raise click.UsageError("--model hybrid fits range profiles only: add --fit-to profiles")
+        if free_materials and scene_model_path is not None:
+            raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset, fit_to,
-                               _device(device or "auto"), hybrid=model_kind == "hybrid")
+                               _device(device or "auto"), hybrid=model_kind == "hybrid", free_materials=free_materials)
         return
-    if scene_model_path is not None or fit_to != "images":
-        raise click.UsageError("--scene-model and --fit-to: only with --model primitive or hybrid")
+    if scene_model_path is not None or fit_to != "images" or free_materials:
+        raise click.UsageError("--scene-model, --free-materials and --fit-to: only with --model primitive or hybrid")
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -430,9 +435,10 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
 def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: float | None, model_path: Path | None,
                            scene_name: str | None, steps: int, start_offset: float, fit_to: str, device, *,
-                           hybrid: bool = False) -> None:
+                           hybrid: bool = False, free_materials: bool = False) -> None:
     """``reconstruct --model primitive|hybrid``: fit the model (``model_path``, else the scene
-    ``scene_name`` with every length free, ``start_offset`` off) to the images or the range
+    ``scene_name`` with every length, and with ``free_materials`` every material, free,
+    ``start_offset`` off) to the images or the range
     profiles (``fit_to``; the hybrid: profiles, then its residual, rfsdf.recon.hybrid), write
     its parameters, the fitted scene file and its mesh into ``out``."""
     from .geometry import Grid
@@ -441,16 +447,22 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     from .radar import read_measurements
     from .recon import Problem
     from .recon.hybrid import fit_hybrid_profiles, project_mesh, residual_amplitude_m
-    from .recon.primitive import fit_primitive
+    from .recon.primitive import fit_primitive, material_text
     from .recon.range_profile import fit_primitive_profiles
     from .scene import Scene, load_scene
-    from .scene_model import SceneModel, load_scene_model
+    from .scene_model import SceneModel, analytic_spec, load_scene_model
+
+    import torch
 
     _refuse_overwriting_inputs(out, data, model_path)
-    truth = load_scene(scene_name).spec if scene_name is not None else None
-    model = (load_scene_model(model_path) if model_path is not None
-             else SceneModel.from_scene(truth, start_offset, seed=0))
     measurements = read_measurements(data)
+    acq = measurements.acquisition
+    # the true scene as the data's radar sees it (a closed room mesh around it: a shell)
+    truth_scene = (load_scene(scene_name).around_radar(torch.cat([acq.tx_m, acq.rx_m], 1).reshape(-1, 3))
+                   if scene_name is not None else None)
+    truth = analytic_spec(truth_scene) if truth_scene is not None else None
+    model = (load_scene_model(model_path) if model_path is not None
+             else SceneModel.from_scene(truth_scene, start_offset, seed=0, free_materials=free_materials))
     lower, upper = _image_box(data, measurements, bounds, None)
     model.require_overlap(lower, upper, "the data's")
     model.require_free()
@@ -464,7 +476,7 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     else:
         grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
         fit = fit_primitive(Problem(measurements, grid, str(data)), model, steps=steps, device=device, progress=True)
-    fitted = Scene(model.fitted_spec(fit.field.fitted()), model.base_dir)
+    fitted = Scene(fit.fitted_spec(), model.base_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "primitive.json", fit.as_dict(truth))
     fitted.write_toml(out / "fitted-scene.toml")
@@ -476,6 +488,10 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     for row in fit.free_table(truth):
         truth_text = "" if row["truth"] is None else f"  truth {_mm(row['truth'])}"
         click.echo(f"  {row['name']:<40} start {_mm(row['start'])}  fitted {_mm(row['fitted'])}{truth_text}")
+    for row in fit.material_table(truth):
+        click.echo(f"  material: {material_text(row)}")
+    if fit.calibration is not None:
+        click.echo(f"  materials read from the data at the fitted model; gain: {fit.calibration}")
 
 
 def _mm(values: list[float]) -> str:
@@ -567,10 +583,15 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
                    "(default 0.15).")
 @click.option("--seed", type=SEED, default=None,
               help="With --model primitive/hybrid/all: the seed of the data's noise and of the start offsets (default 0).")
+@click.option("--free-materials", is_flag=True,
+              help="With --model primitive/hybrid/all and no --scene-model: fit every object's material too "
+                   "(undecided among metal, glass, concrete, plasterboard, wood), but the scene's calibration_reference.")
+@click.option("--max-samples", type=click.IntRange(1, 10**8), default=None,
+              help="With --model primitive/hybrid/all: the simulator's facet budget (default 3,000,000; --quick 40,000).")
 @_one_line_errors
 def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
          relative: bool, device: str, model_kind: str, scene_model_path: Path | None, start_offset: float | None,
-         seed: int | None):
+         seed: int | None, free_materials: bool, max_samples: int | None):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
@@ -590,11 +611,14 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
                                                 ("--relative", relative), ("--device", device != "auto")) if given]
         if neural_only:
             raise click.UsageError(f"{', '.join(neural_only)}: only with --model neural")
+        if free_materials and scene_model_path is not None:
+            raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _model_demo(out, scene_name, radar_name, quick, model_kind, scene_model_path,
-                    0.15 if start_offset is None else start_offset, seed or 0)
+                    0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples)
         return
     given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
-                                      ("--start-offset", start_offset)) if value is not None]
+                                      ("--start-offset", start_offset), ("--free-materials", free_materials or None),
+                                      ("--max-samples", max_samples)) if value is not None]
     if given:
         raise click.UsageError(f"{', '.join(given)}: only with --model primitive, hybrid or all")
     settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name,
@@ -613,7 +637,8 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
 
 
 def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_kind: str,
-                scene_model_path: Path | None, start_offset: float, seed: int) -> None:
+                scene_model_path: Path | None, start_offset: float, seed: int, free_materials: bool,
+                max_samples: int | None) -> None:
     """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo)."""
     import dataclasses
 
@@ -621,8 +646,10 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
     from .report import write_report
 
     settings = dataclasses.replace(QUICK_MODELS if quick else ModelDemoSettings(), scene=scene_name, radar=radar_name,
-                                   start_offset_m=start_offset, seed=seed,
+                                   start_offset_m=start_offset, seed=seed, free_materials=free_materials,
                                    scene_model=None if scene_model_path is None else str(scene_model_path))
+    if max_samples is not None:
+        settings = dataclasses.replace(settings, max_surface_samples=max_samples)
     result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), log=click.echo)
     click.echo(models_table(result))
     click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")

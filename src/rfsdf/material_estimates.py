@@ -28,13 +28,12 @@ import torch
 import trimesh
 
 from .config import validate
-from .materials import class_permittivities, get_material, mixture_fresnel
+from .materials import class_reflectivities, get_material, point_reflectivity, reflectivity_class
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "MaterialEstimate", "MaterialReport", "estimate_materials",
-           "object_materials", "component_materials", "class_accuracy", "class_reflectivities", "point_reflectivity",
-           "reflectivity_class", "point_classes", "eps_of_reflectivity", "paint_mesh",
+           "object_materials", "component_materials", "class_accuracy", "point_classes", "eps_of_reflectivity", "paint_mesh",
            "check_materials_dict", "calibration_text", "scene_reference", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
@@ -96,27 +95,6 @@ def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, quantiles) -> l
     order = np.argsort(values)
     cumulative = np.cumsum(weights[order]) / weights.sum()
     return [float(values[order][min(np.searchsorted(cumulative, q), len(values) - 1)]) for q in quantiles]
-
-
-def class_reflectivities(classes: tuple[str, ...], frequency_hz: float) -> torch.Tensor:
-    """(K,) |Gamma| of each class at normal incidence at ``frequency_hz`` (unpolarised)."""
-    return torch.as_tensor(point_reflectivity(torch.eye(len(classes)), classes, frequency_hz))
-
-
-def point_reflectivity(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
-    """(Q,) |sum_k p_k Gamma_k| at normal incidence: the reflectivity the renderer gives
-    points whose class probabilities are ``probabilities`` (Q, K)."""
-    cos = torch.ones(len(probabilities), dtype=torch.float64)
-    eps = class_permittivities(classes, frequency_hz)
-    return mixture_fresnel(cos, probabilities.detach().cpu().double(), eps).abs().numpy()
-
-
-def reflectivity_class(reflectivity, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
-    """The class of ``classes`` whose |Gamma| at normal incidence is nearest to each
-    ``reflectivity`` (scalar or array): an array of class names, same shape."""
-    levels = class_reflectivities(classes, frequency_hz).numpy()
-    nearest = np.abs(np.asarray(reflectivity, dtype=float)[..., None] - levels).argmin(-1)
-    return np.asarray(classes)[nearest]
 
 
 def point_classes(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:

@@ -16,7 +16,8 @@ from scipy import optimize
 
 __all__ = [
     "Material", "ParameterSet", "MATERIALS", "get_material", "class_permittivities", "fresnel", "fresnel_of_cosine", "mixture_fresnel", "reflectance", "brewster_angle",
-    "PermittivityEstimate", "estimate_permittivity", "EPS0",
+    "PermittivityEstimate", "estimate_permittivity", "EPS0", "MATERIAL_CLASSES", "class_reflectivities",
+    "point_reflectivity", "reflectivity_class",
 ]
 
 EPS0 = 8.8541878128e-12  # vacuum permittivity [F/m]
@@ -126,6 +127,11 @@ MATERIALS: dict[str, Material] = {
     ]
 }
 _ALIASES = {"drywall": "plasterboard", "pec": "metal"}
+
+
+# the classes a material is told apart among when nothing else is said: the material head's
+# default (rfsdf.recon.config) and a scene model's free material (rfsdf.scene_model)
+MATERIAL_CLASSES = ("metal", "glass", "concrete", "plasterboard", "wood")
 
 
 def get_material(name: str) -> Material:
@@ -286,3 +292,24 @@ def estimate_permittivity(
             f"(best eps'={eps_best:.3g} misses by RMS {rms:.3g} > {tolerance})"
         )
     return PermittivityEstimate(eps_best, rms, gain)
+
+
+def class_reflectivities(classes: tuple[str, ...], frequency_hz: float) -> torch.Tensor:
+    """(K,) |Gamma| of each class at normal incidence at ``frequency_hz`` (unpolarised)."""
+    return torch.as_tensor(point_reflectivity(torch.eye(len(classes)), classes, frequency_hz))
+
+
+def point_reflectivity(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """(Q,) |sum_k p_k Gamma_k| at normal incidence: the reflectivity the renderer gives
+    points whose class probabilities are ``probabilities`` (Q, K)."""
+    cos = torch.ones(len(probabilities), dtype=torch.float64)
+    eps = class_permittivities(classes, frequency_hz)
+    return mixture_fresnel(cos, probabilities.detach().cpu().double(), eps).abs().numpy()
+
+
+def reflectivity_class(reflectivity, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+    """The class of ``classes`` whose |Gamma| at normal incidence is nearest to each
+    ``reflectivity`` (scalar or array): an array of class names, same shape."""
+    levels = class_reflectivities(classes, frequency_hz).numpy()
+    nearest = np.abs(np.asarray(reflectivity, dtype=float)[..., None] - levels).argmin(-1)
+    return np.asarray(classes)[nearest]

@@ -33,9 +33,10 @@ from .radar.coverage import observed_mask
 from .radar.waveform import range_resolution_m
 from .recon import load_field
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
+from .recon.primitive import material_text
 from .recon.range_profile import ProfileSettings, fit_primitive_profiles
 from .scene import Scene
-from .scene_model import SceneModel, load_scene_model
+from .scene_model import SceneModel, analytic_spec, load_scene_model
 
 __all__ = ["MODELS", "MODEL_MESHES", "ModelDemoSettings", "QUICK_MODELS", "run_model_demo", "models_table"]
 
@@ -49,13 +50,15 @@ class ModelDemoSettings:
 
     ``residual_range_resolutions``: the hybrid residual's amplitude in range resolutions
     c / 2B of the radar; ``scene_model``: a model file (None: the true scene, every length
-    free, ``start_offset_m`` off, drawn with ``seed``)."""
+    free, ``start_offset_m`` off, drawn with ``seed``, and with ``free_materials`` every
+    material but the scene's calibration reference)."""
 
     scene: str = "l-room"
     radar: str = "room-60g"
     scene_model: str | None = None
     start_offset_m: float = 0.15
     seed: int = 0
+    free_materials: bool = False
     steps: int = 150
     residual_steps: int = 100
     residual_range_resolutions: float = RANGE_RESOLUTIONS
@@ -86,13 +89,18 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
     scene, radar = inputs.scene, inputs.radar
     if start is None:
         start = (load_scene_model(settings.scene_model) if settings.scene_model is not None
-                 else SceneModel.from_scene(scene.spec, settings.start_offset_m, settings.seed))
+                 else SceneModel.from_scene(scene, settings.start_offset_m, settings.seed,
+                                            free_materials=settings.free_materials))
     start.require_overlap(scene.lower_m.tolist(), scene.upper_m.tolist(), f"scene {scene.name!r}'s")
     if set(models) - {"neural"}:
         start.require_free()
     claim_folder(out, settings)
     log(scene.summary())
     log(radar.summary())
+    for true, modelled in zip(scene.spec.objects, start.spec.objects if settings.scene_model is None else []):
+        if true.shape.type == "mesh" and modelled.shape.type != "mesh":
+            log(f"start model: {true.name}'s mesh is a box, modelled as an analytic "
+                f"{'box' if modelled.shape.type == 'box' else 'box less a box (a shell)'} whose lengths are free")
     timings: dict[str, float] = {}
     clock = time.perf_counter()
     if (out / "measurements.h5").exists():  # written atomically by a run of these settings
@@ -154,17 +162,18 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
         fit = fit_hybrid_profiles(measurements, start, amplitude_m=amplitude, lower_m=scene.lower_m,
                                   upper_m=scene.upper_m, steps=settings.steps, residual_steps=settings.residual_steps,
                                   settings=profile, progress=progress)
-    fitted = Scene(start.fitted_spec(fit.field.fitted()), start.base_dir)
+    fitted = Scene(fit.fitted_spec(), start.base_dir)
     mesh, sdf = fitted.ground_truth_mesh(), fitted.sdf
     if name == "hybrid":  # the primitive mesh moved onto the residual's zero set
         mesh, sdf = project_mesh(fit.field.sdf, mesh), fit.field.frozen_sdf()
     folder.mkdir(parents=True, exist_ok=True)
     fitted.write_toml(folder / "fitted-scene.toml")
     export_mesh(mesh, folder / "mesh.ply")
-    free = fit.free_table(scene.spec)
+    truth = analytic_spec(scene)
+    free = fit.free_table(truth)
     row = {**score(mesh, sdf), "mesh": MODEL_MESHES[name], "parameters": sum(len(p["start"]) for p in free),
            "fit_s": round(fit.seconds, 2), "steps": len(fit.losses), "loss_first": fit.losses[0],
-           "loss_last": fit.losses[-1], "free": free}
+           "loss_last": fit.losses[-1], "free": free, "materials": fit.material_table(truth)}
     if name == "hybrid":
         row["residual_amplitude_m"] = fit.field.amplitude_m
         row["residual_weights"] = sum(p.numel() for p in fit.field.residual_parameters())
@@ -195,7 +204,8 @@ def _summary(row: dict) -> str:
     seen = row.get("seen_surface") or {}
     seen_text = (f", seen surface {seen['mean_mm']:.1f} mm mean, {seen['within']:.0%} within "
                  f"{seen['within_m'] * 1e3:.0f} mm" if seen.get("mean_mm") is not None else "")
-    return f"Chamfer {row['chamfer_l1_mm']:.1f} mm, F {row['f_score']:.3f}{seen_text}, {row['fit_s']:.0f} s"
+    materials = "".join(f"; {material_text(m)}" for m in row.get("materials", []))
+    return f"Chamfer {row['chamfer_l1_mm']:.1f} mm, F {row['f_score']:.3f}{seen_text}, {row['fit_s']:.0f} s{materials}"
 
 
 def models_table(result: dict) -> str:

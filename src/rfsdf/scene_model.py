@@ -11,7 +11,8 @@ move from the start [m], or ``[lower, upper]``, absolute bounds (numbers, or vec
 the start). Materials are the objects' own (a free material is not built yet).
 ``SceneModel.from_scene`` makes the start model ``reconstruct --model primitive --scene``
 uses without a model file: the true scene with every length parameter free and moved by a
-seeded random offset.
+seeded random offset; its mesh objects that are boxes (a ray tracer's room, a wall as one
+quad) written first as analytic boxes (:func:`analytic_spec`), so that their lengths are free too.
 """
 
 from __future__ import annotations
@@ -21,12 +22,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .config import read_toml, validate
 from .errors import RfsdfError
-from .scene_spec import SceneSpec
+from .geometry import rotation_matrix
+from .geometry.cuboids import Cuboid, cuboid_of
+from .materials import MATERIAL_CLASSES, get_material
+from .scene import Scene, surface_mesh
+from .scene_spec import MeshShapeSpec, SceneSpec
 
-__all__ = ["FreeParameter", "SceneModel", "load_scene_model", "POSITION_FIELDS", "SIZE_FIELDS"]
+__all__ = ["FreeParameter", "FreeMaterial", "SceneModel", "analytic_spec", "load_scene_model", "POSITION_FIELDS",
+           "SIZE_FIELDS"]
 
 POSITION_FIELDS = ("center_m", "point_m", "start_m", "end_m", "translate_m")  # may move either way
 SIZE_FIELDS = ("half_extents_m", "radius_m", "height_m", "major_radius_m", "minor_radius_m")  # stay positive
@@ -34,6 +41,7 @@ SIZE_FIELDS = ("half_extents_m", "radius_m", "height_m", "major_radius_m", "mino
 # 2 cm thick reached a negative half extent on l-room and stopped the fit
 MIN_SIZE_M = 1e-4
 _KEYS = {"start", "free", "bounds_m"}
+_MATERIAL_KEYS = {"start", "free", "classes"}
 
 
 @dataclass(frozen=True)
@@ -48,6 +56,46 @@ class FreeParameter:
     lower: list[float]
     upper: list[float]
     scalar: bool
+
+
+@dataclass(frozen=True)
+class FreeMaterial:
+    """One object's fitted material: the object's ``name`` and ``index``, the ``classes`` it
+    may be (catalogue names) and the ``start`` class (None: undecided)."""
+
+    name: str
+    index: int
+    classes: tuple[str, ...]
+    start: str | None
+
+
+def _material(table: dict, where: str) -> tuple[str, tuple[str, ...] | None, str | None]:
+    """A material table as (the material to put in the scene file, its classes or None when
+    held, its start or None)."""
+    unknown = set(table) - _MATERIAL_KEYS
+    if unknown:
+        raise RfsdfError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} (a material table has "
+                         "start, free, classes)")
+    free = table.get("free", True)
+    if not isinstance(free, bool):
+        raise RfsdfError(f"{where}.free: expected true or false, got {free!r}")
+    classes = table.get("classes", list(MATERIAL_CLASSES))
+    if not isinstance(classes, list) or len(classes) < 2 or not all(isinstance(c, str) for c in classes):
+        raise RfsdfError(f"{where}.classes: expected a list of at least two material names, got {classes!r}")
+    try:
+        classes = tuple(get_material(c).name for c in classes)
+        start = None if table.get("start") is None else get_material(str(table["start"])).name
+    except ValueError as exc:
+        raise RfsdfError(f"{where}: {exc} (a free material is one of the catalogue's)") from None
+    if len(set(classes)) != len(classes):
+        raise RfsdfError(f"{where}.classes: a class is named twice in {list(classes)}")
+    if not free:
+        if start is None:
+            raise RfsdfError(f"{where}: a held material needs a start")
+        return start, None, start
+    if start is not None and start not in classes:
+        raise RfsdfError(f"{where}.start: {start!r} is not among the classes {list(classes)}")
+    return start or classes[0], classes, start
 
 
 def _is_parameter_table(value) -> bool:
@@ -124,16 +172,25 @@ class SceneModel:
     free: list[FreeParameter]
     source: str
     base_dir: Path = Path(".")
+    materials: tuple[FreeMaterial, ...] = ()  # the objects whose material is fitted
 
     @classmethod
     def from_table(cls, table: dict, source: str, base_dir: Path = Path(".")) -> SceneModel:
         """A model from a parsed TOML table; RfsdfError 'source: field: reason' on bad input."""
         found: list = []
-        substituted = {}
+        substituted, materials = {}, []
         for key, value in table.items():
             if key == "objects" and isinstance(value, list):
-                substituted[key] = [_substitute(obj, ("objects", i), f"{source}: objects[{i}]", found)
-                                    if isinstance(obj, dict) else obj for i, obj in enumerate(value)]
+                substituted[key] = []
+                for i, obj in enumerate(value):
+                    where = f"{source}: objects[{i}]"
+                    if isinstance(obj, dict) and isinstance(obj.get("material"), dict):
+                        material, classes, start = _material(obj["material"], f"{where}.material")
+                        obj = {**obj, "material": material}
+                        if classes is not None:
+                            materials.append(FreeMaterial(str(obj.get("name")), i, classes, start))
+                    substituted[key].append(_substitute(obj, ("objects", i), where, found)
+                                            if isinstance(obj, dict) else obj)
             elif _is_parameter_table(value) or (isinstance(value, dict) and any(map(_is_parameter_table,
                                                                                  value.values()))):
                 raise RfsdfError(f"{source}: {key}: only the objects' shape parameters may be free")
@@ -146,15 +203,21 @@ class SceneModel:
                 raise RfsdfError(f"{source}: {_dotted(path)}: only the objects' shape parameters may be free")
             name = f"{spec.objects[path[1]].name}.{_dotted(path[3:])}"
             free.append(FreeParameter(name, path, parameter.start, parameter.lower, parameter.upper, parameter.scalar))
-        return cls(spec, free, source, base_dir)
+        return cls(spec, free, source, base_dir, tuple(materials))
 
     @classmethod
-    def from_scene(cls, spec: SceneSpec, offset_m: float, seed: int) -> SceneModel:
-        """``spec`` with every length parameter of every shape free, its start moved from
-        the truth by a uniform random offset in [-offset_m, offset_m] per component (sizes
-        kept at least half their true value), bounds 2 x offset_m about the start."""
+    def from_scene(cls, scene: Scene, offset_m: float, seed: int, *, free_materials: bool = False) -> SceneModel:
+        """``scene`` (its :func:`analytic_spec`) with every length parameter of every shape
+        free, its start moved from the truth by a uniform random offset in [-offset_m,
+        offset_m] per component (sizes kept at least half their true value), bounds 2 x
+        offset_m about the start; ``free_materials``: every object's material free too,
+        undecided among ``MATERIAL_CLASSES``, but the scene's ``calibration_reference``."""
         rng = np.random.default_rng(seed)
-        table = spec.model_dump(mode="json")
+        table = analytic_spec(scene).model_dump(mode="json")
+        if free_materials:
+            for obj in table["objects"]:
+                if obj["name"] != table.get("calibration_reference"):
+                    obj["material"] = {"free": True}
 
         def free_lengths(node):
             if isinstance(node, dict):
@@ -175,14 +238,15 @@ class SceneModel:
 
         for obj in table["objects"]:
             free_lengths(obj["shape"])
-        return cls.from_table(table, f"scene {spec.name!r} with every length free")
+        what = "every length and material" if free_materials else "every length"
+        return cls.from_table(table, f"scene {scene.name!r} with {what} free", scene.base_dir)
 
     def require_free(self) -> None:
         """RfsdfError 'source: no free parameter ...' when nothing in the model may move (a
         scene of mesh shapes placed by to_world matrices has no length to free)."""
-        if not self.free:
-            raise RfsdfError(f"{self.source}: no free parameter, so nothing to fit (mesh shapes placed by a to_world "
-                             "matrix have no lengths; give a model file with center_m or size_m as parameter tables)")
+        if not self.free and not self.materials:
+            raise RfsdfError(f"{self.source}: no free parameter, so nothing to fit (a mesh that is not a box has no "
+                             "lengths to free; give a model file of analytic shapes with parameter tables)")
 
     def require_overlap(self, lower_m, upper_m, what: str) -> None:
         """RfsdfError 'source: bounds: ...' when the model's box does not overlap the box
@@ -192,10 +256,13 @@ class SceneModel:
             raise RfsdfError(f"{self.source}: bounds: the model's box {list(lower)} .. {list(upper)} does not overlap "
                              f"{what} {list(lower_m)} .. {list(upper_m)}")
 
-    def fitted_spec(self, values: list[list[float]]) -> SceneSpec:
+    def fitted_spec(self, values: list[list[float]], materials: list[str] = ()) -> SceneSpec:
         """The scene spec with the free parameters at ``values`` (one list per parameter, as
-        :attr:`free`): the fitted scene, a scene file like any other."""
+        :attr:`free`) and the free materials ``materials`` (one name each, as
+        :attr:`materials`): the fitted scene, a scene file like any other."""
         table = self.spec.model_dump(mode="json")
+        for free, name in zip(self.materials, materials):
+            table["objects"][free.index]["material"] = name
         for parameter, value in zip(self.free, values):
             node = table
             for step in parameter.path[:-1]:
@@ -217,12 +284,81 @@ class SceneModel:
         except (KeyError, IndexError, TypeError):
             return None
 
+    def materials_in(self, spec: SceneSpec) -> list[str] | None:
+        """The free materials' objects' materials in another spec of the same objects (the
+        truth), or None when it has not the same objects."""
+        names = [o.name for o in spec.objects]
+        if names != [o.name for o in self.spec.objects]:
+            return None
+        return [spec.material(spec.objects[m.index].material).name for m in self.materials]
+
     def node(self, path: tuple):
         """(spec node, field name) that ``path`` points at in :attr:`spec`."""
         node = self.spec
         for step in path[:-1]:
             node = node[step] if isinstance(step, int) else getattr(node, step)
         return node, path[-1]
+
+
+def analytic_spec(scene: Scene) -> SceneSpec:
+    """``scene``'s spec with each mesh object that is a box (:func:`~rfsdf.geometry.cuboids.cuboid_of`:
+    a closed cuboid read as a solid or a shell, an open rectangle read as a sheet) written
+    as the analytic box (a shell: the box ``thickness_m`` larger less the mesh's box) with
+    the same SDF; every other object as it is. A box whose axes are not the scene's is a
+    box about the origin turned and moved by its ``transform``."""
+    table = scene.spec.model_dump(mode="json")
+    for obj, spec, row in zip(scene.objects, scene.spec.objects, table["objects"]):
+        if isinstance(spec.shape, MeshShapeSpec) and obj.reading is not None:
+            box = _box_shape(spec.shape, obj.reading.reading, scene)
+            row["shape"] = row["shape"] if box is None else box
+    return SceneSpec.model_validate(table)
+
+
+def _box_shape(shape: MeshShapeSpec, reading: str, scene: Scene) -> dict | None:
+    """The shape table of the box that mesh ``shape`` read as ``reading`` is, or None."""
+    surface = surface_mesh(shape, scene.base_dir)
+    scale = 1.0
+    if shape.transform is not None:
+        tf = shape.transform
+        scale = tf.scale
+        matrix = np.eye(4)
+        matrix[:3, :3] = rotation_matrix(tf.rotate_axis, tf.rotate_rad).numpy() * scale
+        matrix[:3, 3] = tf.translate_m
+        surface.apply_transform(matrix)
+    box = cuboid_of(surface)
+    if box is None or box.flat != (reading == "sheet"):
+        return None
+    thickness = None if shape.thickness_m is None else shape.thickness_m * scale
+    if reading == "sheet":
+        return _box_table(box, box.half_extents_m + np.array([0.0, 0.0, thickness / 2]))
+    if reading == "solid":
+        return _box_table(box, box.half_extents_m)
+    outer, inner = (_box_table(box, box.half_extents_m + d, placed=False) for d in (thickness, 0.0))
+    return _placed({"type": "difference", "children": [outer, inner]}, box)
+
+
+def _box_table(box: Cuboid, half_extents_m: np.ndarray, placed: bool = True) -> dict:
+    """A box shape table of ``box``'s frame and centre with ``half_extents_m`` (3,) [m]
+    along its axes; ``placed=False``: about the origin, for :func:`_placed` to place."""
+    aligned = np.abs(box.axes).max(1) > 1 - 1e-9  # every axis one of the scene's
+    if aligned.all():
+        order = np.abs(box.axes).argmax(1)
+        world = np.empty(3)
+        world[order] = half_extents_m
+        return {"type": "box", "half_extents_m": world.tolist(), "center_m": box.center_m.tolist()}
+    table = {"type": "box", "half_extents_m": np.asarray(half_extents_m).tolist()}
+    return _placed(table, box) if placed else table
+
+
+def _placed(table: dict, box: Cuboid) -> dict:
+    """``table`` (a shape about the origin in ``box``'s frame, unless its axes are the
+    scene's) turned into ``box``'s frame and moved to its centre by a transform."""
+    if np.abs(box.axes).max(1).min() > 1 - 1e-9:
+        return table  # its children were placed already
+    rotation = Rotation.from_matrix(box.axes.T).as_rotvec()
+    angle = float(np.linalg.norm(rotation))
+    return {**table, "transform": {"translate_m": box.center_m.tolist(), "rotate_axis": (rotation / angle).tolist(),
+                                   "rotate_rad": angle}}
 
 
 def _dotted(path: tuple) -> str:

@@ -14,6 +14,7 @@ from pydantic import (
 )
 
 from ..config import StrictModel, load_model
+from ..materials import MATERIAL_CLASSES
 
 __all__ = ["ReconConfig", "load_recon_config"]
 
@@ -29,7 +30,7 @@ class FieldConfig(StrictModel):
     # the material head's classes (catalogue names, rfsdf.materials): the renderer reflects
     # each surface sample by the Fresnel coefficient of its material; [] fits a free
     # reflectivity instead (the option kept for comparison)
-    materials: list[str] = ["metal", "glass", "concrete", "plasterboard", "wood"]
+    materials: list[str] = list(MATERIAL_CLASSES)
 
     @field_validator("materials")
     @classmethod

@@ -24,7 +24,7 @@ from ..radar import Measurements
 from ..radar.waveform import range_resolution_m
 from ..scene_model import SceneModel
 from .primitive import PrimitiveField, PrimitiveFit
-from .range_profile import ProfileSettings, fit_profiles
+from .range_profile import ProfileSettings, fit_profiles, read_materials
 
 __all__ = ["HybridField", "TRACE_STEP", "RANGE_RESOLUTIONS", "residual_amplitude_m", "fit_hybrid_profiles",
            "project_mesh"]
@@ -132,7 +132,8 @@ def fit_hybrid_profiles(measurements: Measurements, model: SceneModel, *, amplit
     field.residual_on = True
     losses += fit_profiles(measurements, field, [residual], steps=residual_steps, settings=settings, blur=False,
                            progress=progress, prior=prior, desc="hybrid fit: residual")
-    return PrimitiveFit(field, losses, time.perf_counter() - clock)
+    return read_materials(PrimitiveFit(field, losses, time.perf_counter() - clock,
+                                       measurements.acquisition.center_frequency_hz), measurements, settings)
 
 
 def project_mesh(sdf, mesh: trimesh.Trimesh, steps: int = 4, chunk: int = 1 << 16) -> trimesh.Trimesh:
