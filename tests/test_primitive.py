@@ -107,7 +107,8 @@ def test_reconstruct_fits_a_primitive_model_end_to_end(tmp_path, two_walls):
 
 
 def test_without_a_model_file_the_fit_starts_from_the_scene_with_every_length_free(tmp_path, two_walls):
-    """`--scene` alone: both plates' centres and half extents free, moved up to --start-offset."""
+    """`--scene` alone: both plates' centres and half extents free, moved up to --start-offset;
+    `--free-materials`: their materials too, undecided (the scene names no reference)."""
     import json
 
     from rfsdf.radar import write_measurements
@@ -118,9 +119,13 @@ def test_without_a_model_file_the_fit_starts_from_the_scene_with_every_length_fr
     (tmp_path / "truth.toml").write_text(tomli_w.dumps(truth.spec.model_dump(mode="json", exclude_none=True)))
     result = CliRunner().invoke(main, ["reconstruct", str(tmp_path / "walls.h5"), "--out", str(tmp_path / "run"),
                                        "--model", "primitive", "--scene", str(tmp_path / "truth.toml"),
-                                       "--start-offset", "0.003", "--steps", "2", "--voxel", "0.01"])
+                                       "--start-offset", "0.003", "--steps", "2", "--voxel", "0.01",
+                                       "--free-materials"])
     assert result.exit_code == 0, result.output
-    rows = json.loads((tmp_path / "run" / "primitive.json").read_text())["free"]
+    fit = json.loads((tmp_path / "run" / "primitive.json").read_text())
+    assert [(m["name"], m["start"], m["truth"]) for m in fit["materials"]] == [("west", None, "metal"),
+                                                                             ("east", None, "concrete")]
+    rows = fit["free"]
     assert sorted(r["name"] for r in rows) == sorted(f"{o}.{f}" for o in ("west", "east")
                                                      for f in ("center_m", "half_extents_m"))
     for row in rows:
@@ -142,3 +147,12 @@ def test_a_free_material_is_fitted_through_the_renderer_against_a_held_metal_pla
     assert row["name"] == "east" and row["truth"] == "concrete" and row["calibration"] == "fitted"
     assert row["reflectivity"] == pytest.approx(0.39, rel=0.1) and row["fitted"] == "concrete", row
     assert sum(row["probabilities"].values()) == pytest.approx(1.0)
+
+
+def test_free_materials_from_a_scene_hold_its_calibration_reference():
+    """`--free-materials` frees every object's material but the one the scene calibrates with."""
+    scene = load_scene("objects")
+    model = SceneModel.from_scene(scene, 0.005, seed=0, free_materials=True)
+    assert scene.spec.calibration_reference == "metal_ball"
+    assert [m.name for m in model.materials] == [o.name for o in scene.objects if o.name != "metal_ball"]
+    assert all(m.start is None and "metal" in m.classes for m in model.materials)

@@ -1,5 +1,6 @@
 """The primitive fit at room scale: range profiles of the data against ray votes of a model."""
 
+import dataclasses
 import json
 import math
 import tomllib
@@ -12,7 +13,7 @@ from click.testing import CliRunner
 
 from rfsdf.cli import main
 from rfsdf.radar import SPEED_OF_LIGHT, load_radar, simulate, write_measurements
-from rfsdf.recon.primitive import PrimitiveField
+from rfsdf.recon.primitive import RELATIVE_GAIN, PrimitiveField
 from rfsdf.recon.range_profile import data_profiles, fit_primitive_profiles, model_profiles, path_axis, profile_loss
 from rfsdf.scene import Scene
 from rfsdf.scene_model import SceneModel
@@ -134,7 +135,8 @@ def test_free_materials_are_read_from_each_walls_return_over_its_image_source(ro
     0.33; the walls are 30 cm, under three Fresnel zones sqrt(lambda R / 2) across, and their
     edges move the return off the image source's, metal's to 0.98); with both free the
     simulated data's gain of 1 reads both (concrete, metal); a wrong reference (south held as
-    wood, |Gamma| 0.17) scales east down by as much, as a radar engineer's calibration would."""
+    wood, |Gamma| 0.17) scales east down by as much, as a radar engineer's calibration would;
+    with neither (a capture), they are relative to the brightest and no class is read."""
     _, data = room_data
     truth = SceneSpec.model_validate(_room([1.2, 0.0, 1.5], [0.0, -0.9, 1.5]))
 
@@ -153,3 +155,9 @@ def test_free_materials_are_read_from_each_walls_return_over_its_image_source(ro
     assert both["east"]["calibration"].startswith("1 (rfsdf's simulated data")
     wrong = read({"free": True}, "wood")["east"]
     assert wrong["reflectivity"] == pytest.approx(referenced["reflectivity"] * 0.17, rel=0.1), wrong
+    data = dataclasses.replace(data, metadata={})  # a capture: no gain known, no reference held
+    relative = read({"free": True}, {"free": True})
+    assert relative["south"]["reflectivity"] == 1.0 and relative["south"]["calibration"] == RELATIVE_GAIN
+    assert relative["east"]["reflectivity"] == pytest.approx(both["east"]["reflectivity"]
+                                                            / both["south"]["reflectivity"], rel=1e-6)
+    assert relative["east"]["fitted"] is None  # no class from a relative reflectivity
