@@ -31,13 +31,17 @@ class Cuboid:
         return bool(self.half_extents_m[2] == 0)
 
 
-def _directions(vectors: np.ndarray, tol: float) -> list[np.ndarray]:
-    """The distinct lines (up to sign) among unit ``vectors`` (N, 3), in order of first use."""
-    lines: list[np.ndarray] = []
-    for v in vectors:
-        if not any(abs(float(v @ line)) > 1 - tol for line in lines):
-            lines.append(v)
-    return lines
+def _directions(vectors: np.ndarray, most: int) -> list[np.ndarray] | None:
+    """The distinct lines (up to sign, to ``_RTOL``) among unit ``vectors`` (N, 3), in order of
+    first use; None as soon as there are more than ``most`` (a curved mesh has as many as
+    faces, and comparing each with all of them was quadratic: 17 s for a 5120-face ball)."""
+    lines = vectors[:1]
+    while len(lines) <= most:
+        new = (np.abs(vectors @ lines.T) <= 1 - _RTOL).all(1)
+        if not new.any():
+            return list(lines)
+        lines = np.vstack([lines, vectors[new.argmax()]])
+    return None
 
 
 def _box_in(mesh: trimesh.Trimesh, axes: np.ndarray, flat: bool) -> Cuboid | None:
@@ -74,8 +78,9 @@ def cuboid_of(mesh: trimesh.Trimesh) -> Cuboid | None:
     if not keep.any():
         return None
     mesh = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep], process=False)
-    normals = np.asarray(mesh.face_normals, dtype=float)
-    lines = _directions(normals, _RTOL)
+    lines = _directions(np.asarray(mesh.face_normals, dtype=float), most=3)
+    if lines is None:
+        return None
     if mesh.is_watertight and len(lines) == 3:
         axes = np.stack(lines)
         if np.abs(axes @ axes.T - np.eye(3)).max() > _RTOL:
@@ -83,10 +88,10 @@ def cuboid_of(mesh: trimesh.Trimesh) -> Cuboid | None:
         return _box_in(mesh, axes, flat=False)
     if not mesh.is_watertight and len(lines) == 1:
         normal = lines[0]
-        edges = np.asarray(mesh.vertices)[mesh.edges_unique]
-        directions = edges[:, 1] - edges[:, 0]
-        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        for u in _directions(directions, _RTOL):  # a rectangle's sides are among its edges
+        rim = np.asarray(mesh.vertices)[mesh.edges[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]]
+        directions = rim[:, 1] - rim[:, 0]
+        sides = _directions(directions / np.linalg.norm(directions, axis=1, keepdims=True), most=2)
+        for u in sides or []:  # a rectangle's outline runs along its two sides
             box = _box_in(mesh, np.stack([u, np.cross(normal, u), normal]), flat=True)
             if box is not None:
                 return box

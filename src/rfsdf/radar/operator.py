@@ -208,7 +208,7 @@ class SensingOperator:
                weight: Callable[[slice, slice], torch.Tensor] | None = None) -> torch.Tensor:
         """A c for per-view c (V, Q), times ``weight`` (see forward_weighted): (V, T, R, K).
         Each chunk's data are added into one (V, K, T, R) sum as it comes: kept apart until
-        the end, a 10 x 10 m room's 45,680 chunks of eight views held 24 GiB (measured)."""
+        the end, the 45,680 chunks of a 10 x 10 m room filled 24 GiB (measured)."""
         total = None
         for views, pts in progress_bar(list(self._chunks(points.shape[0])), desc="A c", enabled=progress):
             u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
