@@ -74,11 +74,18 @@ def path_axis(measurements: Measurements, step_m: float, near_m: float) -> torch
     return torch.arange(2 * near_m, unambiguous, step_m, dtype=torch.float64)
 
 
+def _window(count: int) -> torch.Tensor:
+    """(count,) float64 the profiles' window over frequency: Hann, or flat for two or fewer."""
+    if count <= 2:
+        return torch.ones(count, dtype=torch.float64)
+    return torch.hann_window(count, periodic=False, dtype=torch.float64)
+
+
 def data_profiles(measurements: Measurements, path_m: torch.Tensor) -> torch.Tensor:
     """(V, P) power of each view's range profile at ``path_m`` (P,) [m], mean over its Tx-Rx pairs."""
     y = measurements.data.to(torch.complex128)
     f = measurements.acquisition.frequencies_hz.double()
-    window = torch.hann_window(len(f), periodic=False, dtype=torch.float64) if len(f) > 2 else torch.ones(len(f))
+    window = _window(len(f))
     steer = torch.exp(1j * 2 * math.pi * f[:, None] * path_m[None, :] / SPEED_OF_LIGHT)  # (K, P)
     profiles = (y * window).reshape(-1, len(f)) @ steer
     return (profiles.abs() ** 2).reshape(*y.shape[:3], -1).mean((1, 2))
@@ -189,7 +196,7 @@ def image_source_reflectivities(measurements: Measurements, field: PrimitiveFiel
     acq = measurements.acquisition
     path = path_axis(measurements, settings.step_m, settings.near_m)
     data = data_profiles(measurements, path).sqrt()
-    window = torch.hann_window(len(acq.frequencies_hz), periodic=False, dtype=torch.float64).sum()
+    window = _window(len(acq.frequencies_hz)).sum()  # the data profile's peak over one channel's amplitude
     resolution = SPEED_OF_LIGHT / acq.bandwidth_hz  # in path
     hits = _hits(field, acq, rays_per_side=settings.rays_per_side,
                  half_angle_rad=math.radians(settings.half_angle_deg), t_max=float(path[-1]) / 2)
