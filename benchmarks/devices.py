@@ -4,7 +4,9 @@ On the default demo (scene `objects`, radar `near-77g`, 6 mm grid): the simulati
 (scattering with shadows + A c over the surface samples), the exact matched filter of every
 view, CLEAN of one view, a fit step (fit settings as the demo's, warm start skipped; the
 seconds per step the trainer measures), and the SDF network evaluated on a 128^3 grid for
-marching cubes. Each stage runs once to warm up (CUDA kernels, numba) and is then timed;
+marching cubes; and a room's hot stage: A c over 100,000 facets (float64, as the facet
+simulation sums them) for l-room's radar `room-60g` (8 views, 12 channels, 400 frequencies).
+Each stage runs once to warm up (CUDA kernels, numba) and is then timed;
 `speedup` is CPU seconds / GPU seconds in the same run. Without a GPU the JSON says so and
 holds the CPU figures only.
 
@@ -25,7 +27,7 @@ from rfsdf.device import resolve_device
 from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import evaluate_on_grid
-from rfsdf.radar import load_radar, matched_filter, simulate
+from rfsdf.radar import SensingOperator, load_radar, matched_filter, simulate
 from rfsdf.radar.clean import clean_view
 from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.scene import load_scene
@@ -69,7 +71,17 @@ def stage_seconds(device: torch.device) -> dict[str, float]:
         "clean_one_view_s": _seconds(lambda: clean_view(measurements, 0, grid, method="exact", device=device), device),
         "fit_step_s": round(fitted.seconds_per_step, 3),
         "sdf_on_128_grid_s": _seconds(lambda: evaluate_on_grid(fitted.field.sdf, mesh_grid, device=device), device),
+        "room_facets_ac_s": _seconds(_room_facets_ac(device), device),
     }
+
+
+def _room_facets_ac(device: torch.device, facets: int = 100_000):
+    """A c over ``facets`` random points of l-room's box with room-60g's acquisition."""
+    operator = SensingOperator(load_radar("room-60g").acquisition())
+    g = torch.Generator().manual_seed(0)
+    points = ((torch.rand(facets, 3, generator=g, dtype=torch.float64) * 2 - 1) * 2).to(device)
+    c = torch.ones(8, facets, dtype=torch.complex128, device=device)
+    return lambda: operator.forward(points, c)
 
 
 def main() -> None:

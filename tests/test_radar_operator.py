@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from rfsdf.radar import Acquisition, SensingOperator
+from rfsdf.radar import Acquisition, SensingOperator, load_radar
 from rfsdf.radar.dense import dense_matrix
 
 REL_TOL = 2e-5  # complex64 factors, float64-wrapped phases
@@ -53,6 +53,21 @@ def test_chunked_equals_unchunked_and_per_view_sums():
     small, big = SensingOperator(acq, memory_budget_bytes=2000), SensingOperator(acq)
     torch.testing.assert_close(small.adjoint(y, pts), big.adjoint(y, pts), rtol=1e-5, atol=1e-3)
     torch.testing.assert_close(big.adjoint(y, pts, per_view=True).sum(0), big.adjoint(y, pts))
+
+
+def test_a_gpu_gets_larger_chunks_than_the_cpu_unless_a_budget_is_given():
+    """32 MiB chunks keep the CPU's factors in cache; on a GPU they made A c launch-bound
+    (as slow as 16 CPU cores on an H200, measured), so CUDA points get 1 GiB chunks. Only the
+    device's type is read: no GPU is needed to check the sizes."""
+    acq = load_radar("room-60g").acquisition()  # 8 views, 12 channels, 400 frequencies
+    op = SensingOperator(acq)
+    cpu, cuda = (list(op._chunks(100_000, torch.device(d))) for d in ("cpu", "cuda"))
+    assert len(cpu) == 8 * 201 and len(cuda) < len(cpu) / 25  # 499 facets a chunk on the CPU
+    for chunks in (cpu, cuda):  # every view and point once
+        assert sum((v.stop - v.start if v.stop <= 8 else 8 - v.start) * (min(q.stop, 100_000) - q.start)
+                   for v, q in chunks) == 8 * 100_000
+    given = SensingOperator(acq, memory_budget_bytes=2**20)
+    assert len(list(given._chunks(1000, torch.device("cuda")))) == len(list(given._chunks(1000, torch.device("cpu"))))
 
 
 def test_adjoint_identity():
