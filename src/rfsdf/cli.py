@@ -608,13 +608,13 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
         raise click.UsageError("--relative and --reference exclude each other")
     if model_kind != "neural":
         neural_only = [name for name, given in (("--no-materials", no_materials), ("--reference", reference),
-                                                ("--relative", relative), ("--device", device != "auto")) if given]
+                                                ("--relative", relative)) if given]
         if neural_only:
             raise click.UsageError(f"{', '.join(neural_only)}: only with --model neural")
         if free_materials and scene_model_path is not None:
             raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _model_demo(out, scene_name, radar_name, quick, model_kind, scene_model_path,
-                    0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples)
+                    0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples, device)
         return
     given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
                                       ("--start-offset", start_offset), ("--free-materials", free_materials or None),
@@ -638,8 +638,9 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
 
 def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_kind: str,
                 scene_model_path: Path | None, start_offset: float, seed: int, free_materials: bool,
-                max_samples: int | None) -> None:
-    """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo)."""
+                max_samples: int | None, device: str) -> None:
+    """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo);
+    ``device`` runs the simulation and the neural model."""
     import dataclasses
 
     from .model_demo import MODELS, QUICK_MODELS, ModelDemoSettings, models_table, run_model_demo
@@ -650,7 +651,8 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
                                    scene_model=None if scene_model_path is None else str(scene_model_path))
     if max_samples is not None:
         settings = dataclasses.replace(settings, max_surface_samples=max_samples)
-    result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), log=click.echo)
+    result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), device=device,
+                            log=click.echo)
     click.echo(models_table(result))
     click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")
     click.echo(f"report (open in a browser): {write_report(out)}")

@@ -22,7 +22,10 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
+import torch
+
 from .demo import QUICK, DemoSettings, claim_folder, load_scene_and_radar, require_demo_images, run_demo
+from .device import resolve_device
 from .errors import RfsdfError
 from .geometry.mesh_sdf import load_watertight_mesh
 from .jsonio import write_json
@@ -77,14 +80,17 @@ def _profile_settings(settings: ModelDemoSettings) -> ProfileSettings:
 
 
 def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, start: SceneModel | None = None,
-                   log: Callable[[str], None] = print, progress: bool = True) -> dict:
+                   device: str = "auto", log: Callable[[str], None] = print, progress: bool = True) -> dict:
     """Run ``models`` (names of ``MODELS``) with ``settings`` into folder ``out``; returns
     (and writes as metrics.json) {"scene", "radar", "f_threshold_m", "models": {name: ...},
     "timings_s"}, with the models an earlier run of the same settings put there. A model
     that is not run has {"not_run": reason}; one the folder holds already is read back.
     ``start``: the fit's start model instead of the settings' (a benchmark's: another scene's
-    model, which lacks an object of this one)."""
+    model, which lacks an object of this one). ``device`` (auto, cpu, cuda) runs the
+    simulation (scattering and A c over the facets: the room's hot stage) and the neural
+    model there; the profile fits run on the CPU."""
     out = Path(out)
+    device = resolve_device(device)
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
     if start is None:
@@ -107,7 +113,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         measurements = read_measurements(out / "measurements.h5")
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                progress=progress)
+                                device=device, progress=progress)
         write_measurements(out / "measurements.h5", measurements)
     timings["simulate_s"] = round(time.perf_counter() - clock, 2)
     acq = measurements.acquisition
@@ -123,7 +129,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         if (out / name / "model.json").is_file():  # written atomically by a run of these settings
             rows[name] = json.loads((out / name / "model.json").read_text())
         elif name == "neural":
-            rows[name] = _neural(out / "neural", inputs, measurements, settings, score, log, progress)
+            rows[name] = _neural(out / "neural", inputs, measurements, settings, score, log, progress, device)
         else:
             rows[name] = _fitted_model(name, out / name, measurements, start, scene, settings, score, progress)
         timings[f"{name}_s"] = round(time.perf_counter() - clock, 2)
@@ -181,7 +187,8 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     return row
 
 
-def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, score, log, progress: bool) -> dict:
+def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, score, log, progress: bool,
+            device: torch.device) -> dict:
     """The GeRaF demo (``settings.neural``) on the same scene, radar and data, scored as the
     other models are; or {"not_run": reason} where its images do not fit in memory (a room
     at the demo's voxel)."""
@@ -190,7 +197,8 @@ def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, sco
         require_demo_images(inputs, demo_settings)
     except RfsdfError as exc:
         return {"not_run": str(exc)}
-    result = run_demo(folder, demo_settings, log=log, progress=progress, measurements=measurements)
+    result = run_demo(folder, demo_settings, device=str(device), log=log, progress=progress,
+                      measurements=measurements)
     field = load_field(folder / "run")
     row = {**score(load_watertight_mesh(folder / "neural.ply"), field.sdf), "mesh": MODEL_MESHES["neural"],
            "parameters": sum(p.numel() for p in field.parameters()), "fit_s": result.timings_s["fit_s"]}
