@@ -20,7 +20,7 @@ from rfsdf.errors import RfsdfError
 from rfsdf.materials import EPS0, MATERIALS, get_material
 from rfsdf.mitsuba.write import export_scene, write_ply
 from rfsdf.radar import simulate
-from rfsdf.scene import Scene, load_scene, scene_presets
+from rfsdf.scene import Scene, build_shape, load_scene, scene_presets
 from rfsdf.scene_model import SceneModel, analytic_spec
 from test_hostile_inputs import _refused
 from test_rooms import _monostatic
@@ -164,9 +164,16 @@ def test_meshes_that_are_boxes_are_written_as_analytic_boxes_with_the_same_sdf_a
     assert analytic.objects[1].shape.transform.rotate_rad > 0  # the cabinet's own axes
     points = torch.tensor(np.random.default_rng(0).uniform(scene.lower_m, scene.upper_m, (4000, 3)))
     exact = Scene(analytic, scene.base_dir)
-    for mesh_object, box_object in zip(scene.objects, exact.objects):
-        np.testing.assert_allclose(box_object.sdf(points).detach().numpy(), mesh_object.sdf(points).detach().numpy(),
-                                   atol=1e-6)
+    for spec, box_object in zip(scene.spec.objects, exact.objects):  # the meshes' own SDF (libigl's AABB tree)
+        mesh_sdf = build_shape(spec.shape, scene.base_dir)(points)
+        np.testing.assert_allclose(box_object.sdf(points).detach().numpy(), mesh_sdf.detach().numpy(), atol=1e-6)
+    # the scene itself evaluates the boxes in closed form (shadow rays), and samples their meshes
+    assert [o.reading.box for o in scene.objects] == [True, True, True, False]
+    for obj, box_object in zip(scene.objects, exact.objects):
+        np.testing.assert_allclose(obj.sdf(points).detach().numpy(), box_object.sdf(points).detach().numpy())
+    summary = scene.summary()
+    assert scene.objects[0].mesh is not None and "closed surface 59 m^2 read as a shell 20 mm, a box" in summary
+    assert summary.endswith("read as a solid (a shell when a radar is inside)")  # the ball: no box
     model = SceneModel.from_scene(scene, 0.1, seed=0)
     assert {p.name.split(".")[0] for p in model.free} == {"room", "cabinet", "board"}
     assert model.values_in(analytic) is not None  # the truth of every free parameter

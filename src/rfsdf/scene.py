@@ -6,6 +6,7 @@ A scene is loaded from a TOML file (see :mod:`rfsdf.scene_spec`) or a preset nam
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -15,12 +16,15 @@ import numpy as np
 import tomli_w
 import torch
 import trimesh
+from pydantic import TypeAdapter
+from scipy.spatial.transform import Rotation
 
 from . import geometry as geo
 from .atomic import atomic_path
 from .config import preset_names, read_toml, resolve_preset, validate
 from .errors import RfsdfError
 from .limits import input_file
+from .geometry.cuboids import Cuboid, cuboid_of
 from .geometry.differential import gradient
 from .geometry.surface_sampling import stratified_surface_points
 from .geometry.unit_shapes import unit_shape
@@ -28,11 +32,12 @@ from .materials import Material
 from .mesh import extract_mesh, extract_mesh_near_surface
 from .mitsuba.read import is_xml_file, read_mitsuba_scene
 from .roughness import Roughness
-from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec
+from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec, ShapeSpec
 
 __all__ = ["Scene", "SceneObject", "MeshReading", "SurfaceSamples", "load_scene", "scene_presets", "build_shape",
            "surface_mesh", "mesh_reading"]
 
+_SHAPE = TypeAdapter(ShapeSpec)
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
 _COARSE_RESOLUTION = 64  # first pass that finds each object's extent inside the bounds
 _CHECK_RESOLUTION = 24  # grid on which every object must come near the bounds at load time
@@ -55,6 +60,7 @@ class MeshReading:
     closed: bool
     area_m2: float
     reading: str
+    box: bool = False  # its SDF is the analytic box's it is (:func:`box_table`), sampled from the mesh
 
 
 @dataclass(frozen=True)
@@ -148,6 +154,58 @@ def _mesh_shape(spec: MeshShapeSpec, base_dir: Path, surface: trimesh.Trimesh | 
     return geo.MeshSDF(geo.thicken(surface, below, above))
 
 
+def box_table(shape: MeshShapeSpec, reading: str, surface: trimesh.Trimesh) -> dict | None:
+    """The shape table of the analytic box with the SDF of mesh ``shape`` (its
+    :func:`surface_mesh` ``surface``, left as it is) read as ``reading``, or None when it is
+    no box (:func:`~rfsdf.geometry.cuboids.cuboid_of`: a closed cuboid read as a solid or a
+    shell, a flat rectangle read as a sheet). A shell is the box ``thickness_m`` larger less
+    the mesh's box; a box whose axes are not the scene's is a box about the origin turned
+    and moved by its ``transform``."""
+    surface = surface.copy()
+    scale = 1.0
+    if shape.transform is not None:
+        tf = shape.transform
+        scale = tf.scale
+        matrix = np.eye(4)
+        matrix[:3, :3] = geo.rotation_matrix(tf.rotate_axis, tf.rotate_rad).numpy() * scale
+        matrix[:3, 3] = tf.translate_m
+        surface.apply_transform(matrix)
+    box = cuboid_of(surface)
+    if box is None or box.flat != (reading == "sheet"):
+        return None
+    thickness = None if shape.thickness_m is None else shape.thickness_m * scale
+    if reading == "sheet":
+        return _box_table(box, box.half_extents_m + np.array([0.0, 0.0, thickness / 2]))
+    if reading == "solid":
+        return _box_table(box, box.half_extents_m)
+    outer, inner = (_box_table(box, box.half_extents_m + d, placed=False) for d in (thickness, 0.0))
+    return _placed({"type": "difference", "children": [outer, inner]}, box)
+
+
+def _box_table(box: Cuboid, half_extents_m: np.ndarray, placed: bool = True) -> dict:
+    """A box shape table of ``box``'s frame and centre with ``half_extents_m`` (3,) [m]
+    along its axes; ``placed=False``: about the origin, for :func:`_placed` to place."""
+    aligned = np.abs(box.axes).max(1) > 1 - 1e-9  # every axis one of the scene's
+    if aligned.all():
+        order = np.abs(box.axes).argmax(1)
+        world = np.empty(3)
+        world[order] = half_extents_m
+        return {"type": "box", "half_extents_m": world.tolist(), "center_m": box.center_m.tolist()}
+    table = {"type": "box", "half_extents_m": np.asarray(half_extents_m).tolist()}
+    return _placed(table, box) if placed else table
+
+
+def _placed(table: dict, box: Cuboid) -> dict:
+    """``table`` (a shape about the origin in ``box``'s frame, unless its axes are the
+    scene's) turned into ``box``'s frame and moved to its centre by a transform."""
+    if np.abs(box.axes).max(1).min() > 1 - 1e-9:
+        return table  # its children were placed already
+    rotation = Rotation.from_matrix(box.axes.T).as_rotvec()
+    angle = float(np.linalg.norm(rotation))
+    return {**table, "transform": {"translate_m": box.center_m.tolist(), "rotate_axis": (rotation / angle).tolist(),
+                                   "rotate_rad": angle}}
+
+
 def build_shape(spec, base_dir: Path = Path("."), values: dict | None = None,
                 surface: trimesh.Trimesh | None = None) -> geo.SDF:
     """The SDF described by a shape table (recursively for CSG), with its transform applied.
@@ -220,6 +278,10 @@ class Scene:
                 reading = MeshReading(surface.is_watertight, surface.area * scale ** 2, mesh_reading(shape, surface))
             sdf = build_shape(shape, base_dir, surface=surface)
             mesh = sdf.mesh if isinstance(sdf, geo.MeshSDF) and shape.transform is None else None
+            box = box_table(shape, reading.reading, surface) if reading is not None else None
+            if box is not None:  # the same SDF in closed form: a mesh query per shadow-ray step was a room's cost
+                sdf = build_shape(_SHAPE.validate_python(box))
+                reading = dataclasses.replace(reading, box=True)
             roughness = obj.roughness.build() if obj.roughness is not None else None
             self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh, roughness, reading))
         self._meshes: list[trimesh.Trimesh] | None = None
@@ -416,7 +478,7 @@ class Scene:
                 inside = (obj.sdf(points) < 0).nonzero().flatten()
             shape = spec.shape
             if len(inside):
-                room = obj.reading is not None and shape.reading is None and isinstance(obj.sdf, geo.MeshSDF) \
+                room = obj.reading is not None and shape.reading is None and shape.transform is None \
                     and shape.thickness_m is not None and obj.reading.reading == "solid"
                 if not room:
                     where = np.round(points[int(inside[0])].numpy(), 3).tolist()
@@ -455,10 +517,11 @@ def _reading_text(obj: SceneObject, shape) -> str:
         return ""
     reading = obj.reading.reading
     thick = f" {shape.thickness_m * 1e3:g} mm" if reading != "solid" else ""
-    radar = " (a shell around a radar)" if reading == "solid" and shape.reading is None \
+    radar = " (a shell when a radar is inside)" if reading == "solid" and shape.reading is None \
         and shape.thickness_m is not None else ""
     closed = "closed" if obj.reading.closed else "open"
-    return f"  {closed} surface {obj.reading.area_m2:.4g} m^2 read as a {reading}{thick}{radar}"
+    box = ", a box" if obj.reading.box else ""
+    return f"  {closed} surface {obj.reading.area_m2:.4g} m^2 read as a {reading}{thick}{radar}{box}"
 
 
 def _half_thickness(sdf, near: torch.Tensor) -> float:

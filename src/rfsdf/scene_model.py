@@ -22,14 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .config import read_toml, validate
 from .errors import RfsdfError
-from .geometry import rotation_matrix
-from .geometry.cuboids import Cuboid, cuboid_of
 from .materials import MATERIAL_CLASSES, get_material
-from .scene import Scene, surface_mesh
+from .scene import Scene, box_table, surface_mesh
 from .scene_spec import MeshShapeSpec, SceneSpec
 
 __all__ = ["FreeParameter", "FreeMaterial", "SceneModel", "analytic_spec", "load_scene_model", "POSITION_FIELDS",
@@ -309,56 +306,9 @@ def analytic_spec(scene: Scene) -> SceneSpec:
     table = scene.spec.model_dump(mode="json")
     for obj, spec, row in zip(scene.objects, scene.spec.objects, table["objects"]):
         if isinstance(spec.shape, MeshShapeSpec) and obj.reading is not None:
-            box = _box_shape(spec.shape, obj.reading.reading, scene)
+            box = box_table(spec.shape, obj.reading.reading, surface_mesh(spec.shape, scene.base_dir))
             row["shape"] = row["shape"] if box is None else box
     return SceneSpec.model_validate(table)
-
-
-def _box_shape(shape: MeshShapeSpec, reading: str, scene: Scene) -> dict | None:
-    """The shape table of the box that mesh ``shape`` read as ``reading`` is, or None."""
-    surface = surface_mesh(shape, scene.base_dir)
-    scale = 1.0
-    if shape.transform is not None:
-        tf = shape.transform
-        scale = tf.scale
-        matrix = np.eye(4)
-        matrix[:3, :3] = rotation_matrix(tf.rotate_axis, tf.rotate_rad).numpy() * scale
-        matrix[:3, 3] = tf.translate_m
-        surface.apply_transform(matrix)
-    box = cuboid_of(surface)
-    if box is None or box.flat != (reading == "sheet"):
-        return None
-    thickness = None if shape.thickness_m is None else shape.thickness_m * scale
-    if reading == "sheet":
-        return _box_table(box, box.half_extents_m + np.array([0.0, 0.0, thickness / 2]))
-    if reading == "solid":
-        return _box_table(box, box.half_extents_m)
-    outer, inner = (_box_table(box, box.half_extents_m + d, placed=False) for d in (thickness, 0.0))
-    return _placed({"type": "difference", "children": [outer, inner]}, box)
-
-
-def _box_table(box: Cuboid, half_extents_m: np.ndarray, placed: bool = True) -> dict:
-    """A box shape table of ``box``'s frame and centre with ``half_extents_m`` (3,) [m]
-    along its axes; ``placed=False``: about the origin, for :func:`_placed` to place."""
-    aligned = np.abs(box.axes).max(1) > 1 - 1e-9  # every axis one of the scene's
-    if aligned.all():
-        order = np.abs(box.axes).argmax(1)
-        world = np.empty(3)
-        world[order] = half_extents_m
-        return {"type": "box", "half_extents_m": world.tolist(), "center_m": box.center_m.tolist()}
-    table = {"type": "box", "half_extents_m": np.asarray(half_extents_m).tolist()}
-    return _placed(table, box) if placed else table
-
-
-def _placed(table: dict, box: Cuboid) -> dict:
-    """``table`` (a shape about the origin in ``box``'s frame, unless its axes are the
-    scene's) turned into ``box``'s frame and moved to its centre by a transform."""
-    if np.abs(box.axes).max(1).min() > 1 - 1e-9:
-        return table  # its children were placed already
-    rotation = Rotation.from_matrix(box.axes.T).as_rotvec()
-    angle = float(np.linalg.norm(rotation))
-    return {**table, "transform": {"translate_m": box.center_m.tolist(), "rotate_axis": (rotation / angle).tolist(),
-                                   "rotate_rad": angle}}
 
 
 def _dotted(path: tuple) -> str:
