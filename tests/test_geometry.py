@@ -157,6 +157,17 @@ def test_sphere_trace_reports_misses_and_inside_starts():
     assert result.t[0] > 5.0
 
 
+def test_sphere_trace_stops_each_ray_at_its_own_limit():
+    """Two rays at a box face 1 m off: the one whose own limit is 0.8 m misses (its step to
+    the face passes its limit); the one allowed 3 m hits at t = 1."""
+    origins = torch.tensor([[0.0, 0.0, -1.5], [0.0, 0.1, -1.5]], dtype=torch.float64)
+    dirs = torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]], dtype=torch.float64)
+    box = geo.Box([0.5, 0.5, 0.5])
+    result = geo.sphere_trace(box, origins, dirs, t_max=torch.tensor([0.8, 3.0], dtype=torch.float64))
+    assert result.hit.tolist() == [False, True] and float(result.t[1]) == pytest.approx(1.0)
+    assert float(result.t[0]) > 0.8
+
+
 def test_occupancy_is_half_on_surface_and_saturates():
     sphere = geo.Sphere(1.0)
     pts = torch.tensor([[1.0, 0, 0], [0, 0, 0], [3.0, 0, 0]])

@@ -45,7 +45,7 @@ def sphere_trace(
     *,
     eps: float = 1e-5,
     max_steps: int = 128,
-    t_max: float = 10.0,
+    t_max: float | torch.Tensor = 10.0,
     record_history: bool = False,
 ) -> TraceResult:
     """Trace rays o + t d, d normalised, against ``sdf``; vectorised over rays.
@@ -53,7 +53,8 @@ def sphere_trace(
     Parameters
     ----------
     origins, directions : (N, 3) float tensors [m], scene frame.
-    eps : hit tolerance on |f| [m]. max_steps : iteration cap. t_max : miss distance [m].
+    eps : hit tolerance on |f| [m]. max_steps : iteration cap. t_max : miss distance [m], one
+    for all rays or (N,) one per ray (a shadow ray ends at its own target).
 
     Examples
     --------
@@ -68,6 +69,7 @@ def sphere_trace(
     if origins.shape != directions.shape:
         raise ValueError(f"origins {tuple(origins.shape)} and directions {tuple(directions.shape)} differ")
     d = torch.nn.functional.normalize(directions, dim=1)
+    per_ray_limit = isinstance(t_max, torch.Tensor)
     with torch.no_grad():
         n = origins.shape[0]
         t = torch.zeros(n, dtype=origins.dtype, device=origins.device)
@@ -86,7 +88,7 @@ def sphere_trace(
             f_idx = sdf(origins[idx] + t[idx, None] * d[idx])
             f[idx] = f_idx
             newly_hit = f_idx.abs() < eps
-            escaped = t[idx] > t_max
+            escaped = t[idx] > (t_max[idx] if per_ray_limit else t_max)
             hit[idx[newly_hit & ~escaped]] = True
             active[idx[newly_hit | escaped]] = False
             if history is not None:

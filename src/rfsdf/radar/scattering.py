@@ -61,7 +61,7 @@ def lit_mask(points: torch.Tensor, normals: torch.Tensor, tx_centre_m: torch.Ten
         origins = points[idx] + shadow_offset_m * normals[idx]
         direction = centre - origins
         distance = direction.norm(dim=1)
-        trace = sphere_trace(occluder, origins, direction, eps=_TRACE_EPS_M, max_steps=256, t_max=float(distance.max()))
+        trace = sphere_trace(occluder, origins, direction, eps=_TRACE_EPS_M, max_steps=256, t_max=distance)
         lit[idx] = ~(trace.hit & (trace.t < distance))
         return lit
 
