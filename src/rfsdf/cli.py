@@ -335,6 +335,9 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 @click.option("--reference", default=None, metavar="NAME=MATERIAL",
               help="Calibrate the gain with object NAME of --scene, known to be MATERIAL (overrides the config's "
                    "calibration.reference).")
+@click.option("--gain", "gain_path", type=click.Path(path_type=Path), default=None,
+              help="A gain file from `rfsdf calibrate` (a capture of a known target by the same radar): the "
+                   "materials are then absolute, with no reference in the scene.")
 @click.option("--scene", "scene_name", default=None,
               help="Scene file or preset that places the calibration reference (only that object is used); with "
                    "--model primitive, the true scene, to report each free parameter's truth.")
@@ -360,7 +363,7 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
                     model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
-                    free_materials: bool, fit_to: str, device: str | None):
+                    free_materials: bool, fit_to: str, device: str | None, gain_path: Path | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
     fitted-scene.toml, mesh.ply.
@@ -370,7 +373,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     --scene that places it; its result goes to calibration.json."""
     if model_kind != "neural":
         given = [name for name, value in (("--image", image_path), ("--config", config_path), ("--resume", resume),
-                                          ("--reference", reference)) if value]
+                                          ("--reference", reference), ("--gain", gain_path)) if value]
         if given:
             raise click.UsageError(f"{', '.join(given)}: not for --model {model_kind}")
         if scene_model_path is None and scene_name is None:
@@ -399,6 +402,16 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
+    gain = None
+    if gain_path is not None:
+        from .radar.capture_gain import read_capture_gain
+
+        if config.calibration.reference is not None or not config.field.materials:
+            raise click.UsageError("--gain: with a material head and no calibration reference (the reference "
+                                   "calibrates the gain itself)")
+        measured = read_capture_gain(gain_path)
+        measured.require_radar(measurements.acquisition, f"{gain_path} for {data}")
+        gain = measured.gain
     calibrator = None
     if config.calibration.reference is not None:
         if scene_name is None:
@@ -418,7 +431,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         lower, upper = _image_box(data, measurements, bounds, None)
         grid = Grid.from_voxel(lower, upper, _voxel(voxel_m, lower, upper, voxels_per_edge=50))
     known = None if calibrator is None else calibrator.labels(tuple(config.field.materials))
-    trainer = Trainer(Problem(measurements, grid, str(data), known_materials=known), config, out, progress=True)
+    trainer = Trainer(Problem(measurements, grid, str(data), gain=gain, known_materials=known), config, out,
+                      progress=True)
     fit = trainer.fit(resume=resume)
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")
@@ -656,6 +670,29 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
     click.echo(models_table(result))
     click.echo(f"total {result['timings_s']['total_s']:.0f} s; every artefact and metrics.json are in {out}")
     click.echo(f"report (open in a browser): {write_report(out)}")
+
+
+@main.command("calibrate")
+@click.argument("capture", type=click.Path(path_type=Path))
+@click.option("--scene", "scene_name", required=True,
+              help="The capture's scene: the known target (a metal sphere or plate) where it stood, with its material.")
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="The gain file (JSON) reconstruct --gain reads.")
+@_one_line_errors
+def calibrate_cmd(capture: Path, scene_name: str, out: Path):
+    """Measure the radar's gain from CAPTURE, a capture of a known target: against the
+    simulator's noise-free data of --scene through the capture's own antennas, frequencies
+    and views. `reconstruct --gain OUT` then reads materials absolutely from data of the same
+    radar and settings (rfsdf.radar.capture_gain)."""
+    from .jsonio import write_json
+    from .radar import read_measurements
+    from .radar.capture_gain import capture_gain
+    from .scene import load_scene
+
+    _refuse_overwriting_inputs(out, capture, scene_name)
+    measured = capture_gain(read_measurements(capture), load_scene(scene_name), capture_name=str(capture))
+    write_json(out, measured.as_dict())
+    click.echo(f"gain {measured.gain:.6g} (scene {measured.scene!r} explains {measured.explained:.1%} of the "
+               f"capture's energy); wrote {out}")
 
 
 @main.command("materials")
