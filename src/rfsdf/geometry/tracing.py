@@ -53,8 +53,8 @@ def sphere_trace(
     Parameters
     ----------
     origins, directions : (N, 3) float tensors [m], scene frame.
-    eps : hit tolerance on |f| [m]. max_steps : iteration cap. t_max : miss distance [m], one
-    for all rays or (N,) one per ray (a shadow ray ends at its own target).
+    eps : hit tolerance on |f| [m]. max_steps : iteration cap.
+    t_max : miss distance [m]: a number, or (N,) one per ray (a shadow ray ends at its target).
 
     Examples
     --------
