@@ -60,7 +60,12 @@ class MeshReading:
     closed: bool
     area_m2: float
     reading: str
-    box: bool = False  # its SDF is the analytic box's it is (:func:`box_table`), sampled from the mesh
+    box_shape: dict | None = None  # the analytic box it is (:func:`box_table`): its SDF; sampled from the mesh
+
+    @property
+    def box(self) -> bool:
+        """Whether the mesh is a box, evaluated in closed form."""
+        return self.box_shape is not None
 
 
 @dataclass(frozen=True)
@@ -281,7 +286,7 @@ class Scene:
             box = box_table(shape, reading.reading, surface) if reading is not None else None
             if box is not None:  # the same SDF in closed form: a mesh query per shadow-ray step was a room's cost
                 sdf = build_shape(_SHAPE.validate_python(box))
-                reading = dataclasses.replace(reading, box=True)
+                reading = dataclasses.replace(reading, box_shape=box)
             roughness = obj.roughness.build() if obj.roughness is not None else None
             self.objects.append(SceneObject(obj.name, sdf, spec.material(obj.material), mesh, roughness, reading))
         self._meshes: list[trimesh.Trimesh] | None = None

@@ -26,8 +26,8 @@ import numpy as np
 from .config import read_toml, validate
 from .errors import RfsdfError
 from .materials import MATERIAL_CLASSES, get_material
-from .scene import Scene, box_table, surface_mesh
-from .scene_spec import MeshShapeSpec, SceneSpec
+from .scene import Scene
+from .scene_spec import SceneSpec
 
 __all__ = ["FreeParameter", "FreeMaterial", "SceneModel", "analytic_spec", "load_scene_model", "POSITION_FIELDS",
            "SIZE_FIELDS"]
@@ -305,9 +305,8 @@ def analytic_spec(scene: Scene) -> SceneSpec:
     box about the origin turned and moved by its ``transform``."""
     table = scene.spec.model_dump(mode="json")
     for obj, spec, row in zip(scene.objects, scene.spec.objects, table["objects"]):
-        if isinstance(spec.shape, MeshShapeSpec) and obj.reading is not None:
-            box = box_table(spec.shape, obj.reading.reading, surface_mesh(spec.shape, scene.base_dir))
-            row["shape"] = row["shape"] if box is None else box
+        if obj.reading is not None and obj.reading.box:  # the box the scene found at load (scene.box_table)
+            row["shape"] = obj.reading.box_shape
     return SceneSpec.model_validate(table)
 
 
