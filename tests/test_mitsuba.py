@@ -333,7 +333,7 @@ def test_a_room_scene_is_read_around_the_radar_and_the_demo_refuses_it_before_an
     path = _xml(tmp_path, f'{ITU_CONCRETE}<shape type="ply" id="mesh-room"><string name="filename" '
                           'value="meshes/room.ply"/><ref id="c"/></shape>')
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--out", tmp_path / "demo"], tmp_path)
-    assert "the demo's images of" in line and "--model primitive or hybrid" in line
+    assert "the demo's images of" in line and "--model primitive, hybrid or all" in line
     line = _refused(["demo", "--scene", path, "--radar", "room-28g", "--model", "primitive", "--out",
                      tmp_path / "demo"], tmp_path)
     assert "no free parameter, so nothing to fit" in line, line  # a mesh that is no box has no length to free

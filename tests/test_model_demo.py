@@ -59,7 +59,7 @@ def test_a_room_is_refused_by_the_neural_demo_with_the_models_named():
     """l-room at the GeRaF demo's 6 mm voxel does not fit in memory: one line that names
     the scene models instead (the model demo records it as the neural model's reason)."""
     inputs = load_scene_and_radar("l-room", "room-60g")
-    with pytest.raises(RfsdfError, match="--model primitive or hybrid"):
+    with pytest.raises(RfsdfError, match="--model primitive, hybrid or all"):
         require_demo_images(inputs, DemoSettings(scene="l-room", radar="room-60g"))
 
 
@@ -76,28 +76,39 @@ def _walls(tmp_path) -> str:
 
 
 def test_the_room_demo_runs_each_model_into_one_folder_and_reports_them_side_by_side(tmp_path):
-    """`demo --model primitive --quick`, then `--model hybrid` into the same folder: the data
-    are simulated once, metrics.json holds both models with the issue's keys (each free
-    parameter's start, fit and truth), and report.html shows them side by side."""
+    """`demo --model primitive --quick`, then `--model hybrid`, then `--model all` into the
+    same folder: the data are simulated once, the models already there are read back and
+    the neural one added, metrics.json holds the three with the issue's keys (each free
+    parameter's start, fit and truth for the scene models; the network's size and levels,
+    the finest at the range resolution, for the neural one), and report.html shows them side
+    by side."""
     scene, out = _walls(tmp_path), tmp_path / "demo"
-    for model in ("primitive", "hybrid"):
+    for model in ("primitive", "hybrid", "all"):
         result = CliRunner().invoke(main, ["demo", "--scene", scene, "--radar", "room-60g", "--model", model,
                                            "--quick", "--out", str(out)])
         assert result.exit_code == 0, result.output
         assert "F at 10.7 mm (half the range resolution)" in result.output
     assert "simulate_s" in json.loads((out / "metrics.json").read_text())["timings_s"]
     metrics = json.loads((out / "metrics.json").read_text())
-    assert list(metrics["models"]) == ["primitive", "hybrid"]
+    assert list(metrics["models"]) == ["primitive", "hybrid", "neural"]
     assert metrics["f_threshold_m"] == pytest.approx(299_792_458.0 / 7e9 / 4)
-    for row in metrics["models"].values():
+    for name in ("primitive", "hybrid"):
+        row = metrics["models"][name]
         assert {"chamfer_l1_mm", "f_score", "normal_consistency", "parameters", "fit_s", "free"} <= set(row)
         names = {p["name"]: p for p in row["free"]}
         assert names["east.center_m"]["truth"] == [1.2, 0.0, 1.5]
         assert set(names["east.center_m"]) == {"name", "unit", "start", "fitted", "truth"}
         assert row["seen_surface"]["foot_points"] > 0
     assert metrics["models"]["hybrid"]["residual_amplitude_m"] == pytest.approx(2 * 299_792_458.0 / 7e9 / 2)
+    neural = metrics["models"]["neural"]
+    assert {"chamfer_l1_mm", "f_score", "normal_consistency", "parameters", "fit_s", "seen_surface"} <= set(neural)
+    encoded = 3 + 6 * neural["levels"]  # QUICK's network: width 32, depth 3, the input re-fed before layer 1
+    assert neural["steps"] == 4 and neural["parameters"] == (encoded + 1) * 32 + (32 + encoded + 1) * 32 + 32 + 1
+    assert 3.2 / 2 ** neural["levels"] <= 299_792_458.0 / 7e9 / 2 < 3.2 / 2 ** (neural["levels"] - 1)
+    assert (out / "neural" / "mesh.ply").is_file()
     page = (out / "report.html").read_text()
     assert 'id="models"' in page and 'id="free-primitive"' in page and 'id="free-hybrid"' in page
+    assert "neural model, coloured by its signed distance" in page
 
 
 @pytest.mark.parametrize("args, message", [

@@ -588,7 +588,8 @@ def evaluate_cmd(mesh_path: Path, scene_name: str, threshold_m: float, as_json: 
 @click.option("--model", "model_kind", type=click.Choice(["neural", "primitive", "hybrid", "all"]), default="neural",
               show_default=True,
               help="neural: the GeRaF fit and its baselines; primitive, hybrid: a scene model fitted to the range "
-                   "profiles (rooms); all: the three side by side.")
+                   "profiles (rooms); all: those two and the GeRaF network distilled from the same start and fitted "
+                   "to the same profiles, side by side.")
 @click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
               help="With --model primitive/hybrid/all: the start model (a scene file with free parameters); "
                    "default: --scene with every length free, --start-offset off.")
@@ -654,7 +655,7 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
                 scene_model_path: Path | None, start_offset: float, seed: int, free_materials: bool,
                 max_samples: int | None, device: str) -> None:
     """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo);
-    ``device`` runs the simulation and the neural model."""
+    ``device`` runs the simulation."""
     import dataclasses
 
     from .model_demo import MODELS, QUICK_MODELS, ModelDemoSettings, models_table, run_model_demo

@@ -183,7 +183,7 @@ def require_demo_images(inputs: SceneAndRadar, settings: DemoSettings) -> None:
         require_image_memory(len(inputs.radar.positions_m), grid, f"the demo's images of {settings.scene}")
     except RfsdfError as exc:
         raise RfsdfError(f"{exc}; the GeRaF demo reconstructs scenes of objects about a metre across; for a room, "
-                         "--model primitive or hybrid") from None
+                         "--model primitive, hybrid or all") from None
 
 
 def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:

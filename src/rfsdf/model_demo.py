@@ -1,20 +1,20 @@
 """The demo of scene models: a scene (a room) simulated, then a primitive model, a hybrid
-model and the neural fit reconstructed from the same data, each meshed and scored.
+model and a neural model reconstructed from the same data, each meshed and scored.
 
-``rfsdf demo --model primitive|hybrid|neural|all``. The primitive and hybrid models are
-fitted to each view's range profile (:mod:`rfsdf.recon.range_profile`,
-:mod:`rfsdf.recon.hybrid`), which is what a few-centimetre array resolves at room scale;
-their start is a scene model file, or the true scene with every length free and moved by a
-seeded random offset (:meth:`~rfsdf.scene_model.SceneModel.from_scene`). The neural model
-is the GeRaF demo (:mod:`rfsdf.demo`) on the same scene and radar, run where its images fit
-in memory and otherwise recorded as not run, with the reason. Every model is scored against
-the true scene: Chamfer, F at half the radar's range resolution, normal consistency, and the
-seen surface (|f| at the specular foot points, :func:`~rfsdf.metrics.specular_feet`).
+``rfsdf demo --model primitive|hybrid|neural|all``. All three are fitted to each view's
+range profile through the same ray-vote renderer (:mod:`rfsdf.recon.range_profile`), which
+is what a few-centimetre array resolves at room scale, from the same start: a scene model
+file, or the true scene with every length free and moved by a seeded random offset
+(:meth:`~rfsdf.scene_model.SceneModel.from_scene`). The primitive model fits the start's
+free parameters, the hybrid adds a bounded neural residual (:mod:`rfsdf.recon.hybrid`), the
+neural model is the GeRaF geometry network distilled from the start and then free in every
+weight (:mod:`rfsdf.recon.neural_profiles`). Every model is scored against the true scene:
+Chamfer, F at half the radar's range resolution, normal consistency, and the seen surface
+(|f| at the specular foot points, :func:`~rfsdf.metrics.specular_feet`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -22,20 +22,17 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-import torch
 
-from .demo import QUICK, DemoSettings, claim_folder, load_scene_and_radar, require_demo_images, run_demo
+from .demo import claim_folder, load_scene_and_radar
 from .device import resolve_device
-from .errors import RfsdfError
-from .geometry.mesh_sdf import load_watertight_mesh
 from .jsonio import write_json
-from .mesh import export_mesh
+from .mesh import export_mesh, extract_mesh_near_surface
 from .metrics import evaluate_scene, seen_surface_errors, specular_feet
 from .radar import read_measurements, simulate, write_measurements
 from .radar.coverage import observed_mask
 from .radar.waveform import range_resolution_m
-from .recon import load_field
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
+from .recon.neural_profiles import NeuralProfileSettings, distil_start, fit_neural_profiles
 from .recon.primitive import material_text
 from .recon.range_profile import ProfileSettings, fit_primitive_profiles
 from .scene import Scene
@@ -44,7 +41,7 @@ from .scene_model import SceneModel, analytic_spec, load_scene_model
 __all__ = ["MODELS", "MODEL_MESHES", "ModelDemoSettings", "QUICK_MODELS", "run_model_demo", "models_table"]
 
 MODELS = ("primitive", "hybrid", "neural")
-MODEL_MESHES = {"primitive": "primitive/mesh.ply", "hybrid": "hybrid/mesh.ply", "neural": "neural/neural.ply"}
+MODEL_MESHES = {name: f"{name}/mesh.ply" for name in MODELS}
 
 
 @dataclass(frozen=True)
@@ -68,11 +65,12 @@ class ModelDemoSettings:
     max_surface_samples: int = 3_000_000
     rays_per_side: int = 48
     metric_samples: int = 50_000
-    neural: DemoSettings = DemoSettings()  # the GeRaF demo's settings (its scene, radar and seed are these)
+    neural: NeuralProfileSettings = NeuralProfileSettings()
 
 
 QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=40_000, rays_per_side=16,
-                                 metric_samples=5_000, neural=QUICK)
+                                 metric_samples=5_000,
+                                 neural=NeuralProfileSettings(width=32, depth=3, distil_steps=60, batch=2048, steps=4))
 
 
 def _profile_settings(settings: ModelDemoSettings) -> ProfileSettings:
@@ -83,12 +81,12 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
                    device: str = "auto", log: Callable[[str], None] = print, progress: bool = True) -> dict:
     """Run ``models`` (names of ``MODELS``) with ``settings`` into folder ``out``; returns
     (and writes as metrics.json) {"scene", "radar", "f_threshold_m", "models": {name: ...},
-    "timings_s"}, with the models an earlier run of the same settings put there. A model
-    that is not run has {"not_run": reason}; one the folder holds already is read back.
+    "timings_s"}, with the models an earlier run of the same settings put there (a model the
+    folder holds already is read back).
     ``start``: the fit's start model instead of the settings' (a benchmark's: another scene's
     model, which lacks an object of this one). ``device`` (auto, cpu, cuda) runs the
-    simulation (scattering and A c over the facets: the room's hot stage) and the neural
-    model there; the profile fits run on the CPU."""
+    simulation (scattering and A c over the facets: the room's hot stage) there; the
+    profile fits run on the CPU."""
     out = Path(out)
     device = resolve_device(device)
     inputs = load_scene_and_radar(settings.scene, settings.radar)
@@ -98,7 +96,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
                  else SceneModel.from_scene(scene, settings.start_offset_m, settings.seed,
                                             free_materials=settings.free_materials))
     start.require_overlap(scene.lower_m.tolist(), scene.upper_m.tolist(), f"scene {scene.name!r}'s")
-    if set(models) - {"neural"}:
+    if set(models) - {"neural"}:  # the neural model is free in every weight whatever the start
         start.require_free()
     claim_folder(out, settings)
     log(scene.summary())
@@ -129,7 +127,8 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         if (out / name / "model.json").is_file():  # written atomically by a run of these settings
             rows[name] = json.loads((out / name / "model.json").read_text())
         elif name == "neural":
-            rows[name] = _neural(out / "neural", inputs, measurements, settings, score, log, progress, device)
+            seen = partial(seen_surface_errors, feet=feet, within_m=threshold)
+            rows[name] = _neural(out / name, measurements, start, scene, settings, score, seen, progress)
         else:
             rows[name] = _fitted_model(name, out / name, measurements, start, scene, settings, score, progress)
         timings[f"{name}_s"] = round(time.perf_counter() - clock, 2)
@@ -187,28 +186,35 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     return row
 
 
-def _neural(folder: Path, inputs, measurements, settings: ModelDemoSettings, score, log, progress: bool,
-            device: torch.device) -> dict:
-    """The GeRaF demo (``settings.neural``) on the same scene, radar and data, scored as the
-    other models are; or {"not_run": reason} where its images do not fit in memory (a room
-    at the demo's voxel)."""
-    demo_settings = dataclasses.replace(settings.neural, scene=settings.scene, radar=settings.radar, seed=settings.seed)
-    try:
-        require_demo_images(inputs, demo_settings)
-    except RfsdfError as exc:
-        return {"not_run": str(exc)}
-    result = run_demo(folder, demo_settings, device=str(device), log=log, progress=progress,
-                      measurements=measurements)
-    field = load_field(folder / "run")
-    row = {**score(load_watertight_mesh(folder / "neural.ply"), field.sdf), "mesh": MODEL_MESHES["neural"],
-           "parameters": sum(p.numel() for p in field.parameters()), "fit_s": result.timings_s["fit_s"]}
+def _neural(folder: Path, measurements, start: SceneModel, scene: Scene, settings: ModelDemoSettings, score, seen,
+            progress: bool) -> dict:
+    """Distil the start into the geometry network, fit it to the range profiles, mesh it near
+    its zero set at a voxel of one range resolution, score it (``seen``: an SDF's seen-surface
+    errors, for the distilled start too), and write its folder: ``model.json`` and ``mesh.ply``."""
+    clock = time.perf_counter()
+    field = distil_start(start, scene.lower_m.tolist(), scene.upper_m.tolist(),
+                         measurements.acquisition.bandwidth_hz, settings=settings.neural, seed=settings.seed,
+                         progress=progress)
+    sdf = field.frozen_sdf()
+    start_seen = seen(sdf)
+    fit = fit_neural_profiles(measurements, field, settings=settings.neural, profile=_profile_settings(settings),
+                              seed=settings.seed, progress=progress)
+    network = field.network
+    mesh = extract_mesh_near_surface(sdf, network.lower_m, network.upper_m,
+                                     range_resolution_m(measurements.acquisition.bandwidth_hz), progress=progress)
+    folder.mkdir(parents=True, exist_ok=True)
+    export_mesh(mesh, folder / "mesh.ply")
+    row = {**score(mesh, sdf), "mesh": MODEL_MESHES["neural"],
+           "parameters": sum(p.numel() for p in field.geometry_parameters()),
+           "fit_s": round(time.perf_counter() - clock, 2),
+           "steps": len(fit.losses), "loss_first": fit.losses[0], "loss_last": fit.losses[-1],
+           "levels": network.encoding.levels, "distil_residual_mm": field.distil_residual_m * 1e3,
+           "start_seen_surface": start_seen}
     write_json(folder / "model.json", row)
     return row
 
 
 def _summary(row: dict) -> str:
-    if "not_run" in row:
-        return f"not run: {row['not_run']}"
     seen = row.get("seen_surface") or {}
     seen_text = (f", seen surface {seen['mean_mm']:.1f} mm mean, {seen['within']:.0%} within "
                  f"{seen['within_m'] * 1e3:.0f} mm" if seen.get("mean_mm") is not None else "")
@@ -221,9 +227,6 @@ def models_table(result: dict) -> str:
     lines = [f"{'model':<10} {'Chamfer mm':>11} {'F':>6} {'normals':>8} {'seen mm':>8} {'seen <':>7} "
              f"{'params':>7} {'fit s':>7}"]
     for name, row in result["models"].items():
-        if "not_run" in row:
-            lines.append(f"{name:<10} not run: {row['not_run']}")
-            continue
         seen = row.get("seen_surface") or {}
         cell = lambda v, fmt: "-" if v is None else format(v, fmt)  # noqa: E731
         lines.append(f"{name:<10} {cell(row['chamfer_l1_mm'], '11.1f')} {cell(row['f_score'], '6.3f')} "

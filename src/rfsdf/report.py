@@ -89,14 +89,23 @@ class _DemoMetrics(pydantic.BaseModel):
         return methods
 
 
+class _ModelRow(pydantic.BaseModel):
+    """What the report reads of one model's row: its scores (None where none could be had)."""
+
+    model_config = pydantic.ConfigDict(extra="allow")
+
+    chamfer_l1_mm: float | None
+    f_score: float | None
+    normal_consistency: float | None
+
+
 class _ModelsMetrics(pydantic.BaseModel):
-    """What the report reads of a model demo's metrics.json: per model its scores (or why
-    it was not run)."""
+    """What the report reads of a model demo's metrics.json: per model its scores."""
 
     model_config = pydantic.ConfigDict(extra="allow")
 
     f_threshold_m: float
-    models: dict[Literal[MODELS], dict]
+    models: dict[Literal[MODELS], _ModelRow]
 
 
 _STYLE = """
@@ -271,7 +280,7 @@ def _models_sections(folder: Path, settings: dict, result: dict) -> tuple[str, l
             sections.append(Section(f"free-{name}", f"{name}: free parameters [mm]",
                                     _table(["start", "fitted", "truth"], rows)))
         mesh_path = folder / MODEL_MESHES[name]
-        if "not_run" not in row and mesh_path.is_file():
+        if mesh_path.is_file():
             views.append(error_figure(_load_mesh(mesh_path), scene.sdf, f"{name} model, coloured by its signed "
                                       f"distance to the truth (Chamfer {row['chamfer_l1_mm']:.1f} mm)", truth=truth))
     views.append(views_figure(truth, acquisition.tx_m.numpy(), acquisition.rx_m.numpy(),
