@@ -179,10 +179,10 @@ def test_the_neural_model_starts_at_its_start_model_and_the_profiles_move_a_seen
     east one is 10 cm thick with its face 4 cm too far (x = 1.23 m; the truth's, 2 cm thick,
     at 1.19): distilled in 400 steps with the gradient term, its face on the east view's
     boresight is within 6 mm of the start's, its normals within 10 deg of the start's at the
-    median (L1 on f alone left 40 deg, and the ray votes read normals), and the room's air is outside (f > 0 at every view, which a
-    sphere's initialisation got wrong); 30 profile steps then move that face at least 1.5 cm
-    towards the truth, and not past it (measured: 1.230 -> 1.207 m; at 3e-4 it stays, at
-    3e-3 the wall is lost)."""
+    median (L1 on f alone left 40 deg, and the ray votes read normals), and the room's air
+    is outside (f > 0 at every view, which a sphere's initialisation got wrong); 30 profile
+    steps then move that face at least 1.5 cm towards the truth, and not past it (measured:
+    1.230 -> 1.207 m; at 3e-4 it stays, at 3e-3 the wall is lost)."""
     _, data = room_data
     table = _room([1.28, 0.0, 1.5], [0.0, -0.9, 1.5])
     table["objects"][0]["shape"]["half_extents_m"] = [0.05, 0.15, 0.15]

@@ -86,9 +86,10 @@ class NeuralProfileField(torch.nn.Module):
                  seed: int = 0):
         super().__init__()
         longest = max(float(u) - float(lo) for lo, u in zip(lower_m, upper_m))
-        torch.manual_seed(seed)  # the network's initial weights
-        self.network = RadarField(lower_m, upper_m, levels=levels_for(longest, range_resolution_m(bandwidth_hz)),
-                                  depth=depth, width=width, geometric_init=False)
+        with torch.random.fork_rng(devices=[]):  # initial weights from ``seed``; the caller's stream untouched
+            torch.manual_seed(seed)
+            self.network = RadarField(lower_m, upper_m, levels=levels_for(longest, range_resolution_m(bandwidth_hz)),
+                                      depth=depth, width=width, geometric_init=False)
         self.start = PrimitiveField(start)
         self.materials = self.start.materials
         self.near_points = _near_points(start, NEAR_POINTS, seed)  # (NEAR_POINTS, 3) on the start's surface [m]
@@ -164,7 +165,8 @@ def distil_start(start: SceneModel, lower_m, upper_m, bandwidth_hz: float, *,
         batch = points(settings.batch, settings.near_share)
         with torch.no_grad():
             wanted = target(batch.double()).float()
-        loss = (field.network.sdf(batch) - wanted).abs().mean()
+        misfit = (field.network.sdf(batch) - wanted).abs().mean()
+        loss = misfit
         if settings.gradient_weight > 0:
             near = batch[: settings.batch // 4]  # within near_m of the start's surface (near_share >= 1/4)
             slope = gradient(field.network.sdf, near, create_graph=True)
@@ -174,7 +176,7 @@ def distil_start(start: SceneModel, lower_m, upper_m, bandwidth_hz: float, *,
         loss.backward()
         optimizer.step()
         schedule.step()
-        field.distil_residual_m = float(loss.detach())
+        field.distil_residual_m = float(misfit.detach())
     return field
 
 
