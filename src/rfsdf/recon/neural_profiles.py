@@ -46,6 +46,7 @@ from ..scene_model import SceneModel
 from .losses import eikonal_loss
 from .primitive import PrimitiveField
 from .range_profile import ProfileSettings, fit_profiles
+from .schedules import exponential_decay
 
 __all__ = ["TRACE_STEP", "NeuralProfileSettings", "NeuralProfileField", "NeuralProfileFit", "distil_start",
            "fit_neural_profiles"]
@@ -160,7 +161,7 @@ def distil_start(start: SceneModel, lower_m, upper_m, bandwidth_hz: float, *,
     points = _sampler(field.near_points, lower_m, upper_m, settings.near_m, torch.Generator().manual_seed(seed))
     optimizer = torch.optim.Adam(field.geometry_parameters(), lr=settings.distil_lr)
     steps = settings.distil_steps
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: 0.1 ** (step / max(steps - 1, 1)))
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: exponential_decay(step, steps - 1, 1.0, 0.1))
     for _ in progress_bar(range(steps), desc="neural model: distil the start", enabled=progress):
         batch = points(settings.batch, settings.near_share)
         with torch.no_grad():

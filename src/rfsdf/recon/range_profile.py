@@ -55,6 +55,7 @@ from ..radar import SPEED_OF_LIGHT, Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
 from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
+from .schedules import exponential_decay
 
 __all__ = ["ProfileSettings", "path_axis", "data_profiles", "model_profiles", "profile_loss",
            "fit_primitive_profiles", "fit_profiles", "image_source_reflectivities"]
@@ -309,7 +310,7 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
     path = path_axis(measurements, settings.step_m, settings.near_m)
     data = data_profiles(measurements, path)
     optimizer = torch.optim.Adam(groups)
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: 0.1 ** (step / max(steps - 1, 1)))
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: exponential_decay(step, steps - 1, 1.0, 0.1))
     losses = []
     for step in progress_bar(range(steps), desc=desc, enabled=progress):
         width = settings.blur_start_m * (1 - step / max(steps - 1, 1)) if blur else 0.0
