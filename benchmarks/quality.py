@@ -20,6 +20,7 @@ from pathlib import Path
 
 from rfsdf.demo import DemoSettings, metrics_table, run_demo
 from rfsdf.jsonio import to_json
+from rfsdf.radar.simulate import SIMULATED_GAIN
 
 
 def main() -> None:
@@ -39,7 +40,8 @@ def main() -> None:
 
     settings = dataclasses.replace(DemoSettings(), scene=args.scene, radar=args.radar, recon=args.recon,
                                    voxel_m=args.voxel_mm * 1e-3, samples_per_wavelength=args.samples_per_wavelength,
-                                   stratified_samples=not args.random_samples, known_gain=args.known_gain)
+                                   stratified_samples=not args.random_samples,
+                                   gain=SIMULATED_GAIN if args.known_gain else None)
     with tempfile.TemporaryDirectory() as folder:
         result = run_demo(folder, settings, progress=False, log=lambda _: None)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,10 +1,11 @@
 import numpy as np
 import pytest
+import torch
 import trimesh
 
 from rfsdf.geometry import Sphere
 from rfsdf.mesh import extract_mesh
-from rfsdf.metrics import compare_meshes, volumetric_iou
+from rfsdf.metrics import compare_meshes, once_per_samples, volumetric_iou
 
 
 def test_identical_meshes_score_perfectly():
@@ -126,3 +127,14 @@ def test_accuracy_and_completeness_are_split_by_whether_the_true_surface_is_obse
     assert accuracy == pytest.approx(0.5 * (result.accuracy_near_observed_mm + result.accuracy_near_unobserved_mm), abs=0.3)
     assert result.as_dict()["accuracy_near_unobserved_mm"] == result.accuracy_near_unobserved_mm
     assert evaluate_scene(mesh, scene, samples=2_000).accuracy_near_observed_mm is None
+
+
+def test_the_observed_mask_is_traced_once_per_set_of_samples():
+    """A demo scores five meshes against the same true-surface samples: the mask is computed
+    once for them, and again when the samples change."""
+    calls = []
+    mask = once_per_samples(lambda p, n: calls.append(len(p)) or p[:, 0] < 0)
+    points, normals = torch.randn(50, 3), torch.randn(50, 3)
+    first = mask(points, normals)
+    assert torch.equal(mask(points.clone(), normals.clone()), first) and calls == [50]
+    assert torch.equal(mask(points[:20], normals[:20]), points[:20, 0] < 0) and calls == [50, 20]

@@ -44,7 +44,7 @@ from .material_estimates import (
     MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, scene_reference,
 )
 from .mesh import export_mesh, extract_mesh
-from .metrics import SceneMetrics, evaluate_scene
+from .metrics import SceneMetrics, evaluate_scene, once_per_samples
 from .radar import (
     Measurements, Radar, check_materials_in_band, check_radar_for_scene, load_radar, matched_filter,
     read_measurements, simulate, write_image, write_measurements,
@@ -52,7 +52,7 @@ from .radar import (
 from .radar.clean import MAX_COMPONENTS, clean_image
 from .radar.coverage import observed_mask
 from .radar.imaging import require_image_memory
-from .radar.simulate import SAMPLES_PER_WAVELENGTH, SIMULATED_GAIN
+from .radar.simulate import SAMPLES_PER_WAVELENGTH
 from .recon import Problem, ReconConfig, Trainer
 from .recon.calibration import check_reference
 from .recon.warm_start import detection_threshold, excluded_voxels
@@ -75,10 +75,11 @@ class DemoSettings:
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH  # of the simulator's surface
     stratified_samples: bool = True  # the simulator's samples one per stratum of equal area
     recon: dict = field(default_factory=dict)  # ReconConfig overrides (nested tables)
-    # give the fit the simulator's radar gain (absolute |Gamma|); off, one gain is fitted at
-    # each step and materials are relative: with the gain known, the neural surface's dimmer
-    # glints made the head pick brighter classes (tests/test_material_fit.py)
-    known_gain: bool = False
+    # the radar gain held in the fit (absolute |Gamma|): SIMULATED_GAIN for this simulator's
+    # data, or a separate capture's (rfsdf calibrate); None fits one gain at each step (against
+    # the calibration_reference when the scene names one). With the simulator's gain held, the
+    # neural surface's dimmer glints made the head pick brighter classes (tests/test_material_fit.py)
+    gain: float | None = None
     # leave out the scene's calibration_reference (one gain fitted per step, relative materials)
     relative: bool = False
     mesh_resolution: int = 128
@@ -189,9 +190,10 @@ def require_demo_images(inputs: SceneAndRadar, settings: DemoSettings) -> None:
 def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
     """``config`` calibrated by the scene's ``calibration_reference`` (rendered as its own
     material), unless a reference is already set, the settings ask for relative materials,
-    or there is no material head."""
+    or there is no material head, or the settings hold a known gain."""
     name = scene.spec.calibration_reference
-    if name is None or settings.relative or config.calibration.reference is not None or not config.field.materials:
+    if (name is None or settings.relative or settings.gain is not None or config.calibration.reference is not None
+            or not config.field.materials):
         return config
     material = next(o.material.name for o in scene.objects if o.name == name)
     merged = config.model_dump()
@@ -268,14 +270,15 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
         reference = scene_reference(scene, config.calibration, measurements.acquisition)
     problem = Problem(measurements, grid, str(out / "measurements.h5"),
                       clean=clean if config.init.method == "clean" else None,
-                      gain=SIMULATED_GAIN if settings.known_gain else None,
+                      gain=settings.gain,
                       known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
     trainer = Trainer(problem, config, out / "run", progress=progress)
     fit = trainer.fit(resume=True)
     lap("fit_s")
 
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
-                    observed=partial(observed_mask, acquisition=measurements.acquisition, occluder=scene.sdf))
+                    observed=once_per_samples(partial(observed_mask, acquisition=measurements.acquisition,
+                                                      occluder=scene.sdf)))
     neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
     has_head = fit.field.material_head is not None  # its mesh carries each vertex's material
     export_mesh(paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz) if has_head else neural,

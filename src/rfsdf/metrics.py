@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 from .geometry import MeshSDF, sphere_trace
 
 __all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
-           "with_scene_iou", "evaluate_scene", "specular_feet", "seen_surface_errors"]
+           "with_scene_iou", "evaluate_scene", "once_per_samples", "specular_feet", "seen_surface_errors"]
 
 
 @dataclass(frozen=True)
@@ -157,6 +157,20 @@ def _scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m) -> MeshMetrics:
         recall=recall, threshold_mm=threshold_m * 1e3, normal_consistency=float(consistency),
         hausdorff95_mm=float(max(np.percentile(d_ab, 95), np.percentile(d_ba, 95)) * 1e3),
     )
+
+
+def once_per_samples(observed: Callable) -> Callable:
+    """``observed`` (points (N, 3), normals (N, 3)) -> (N,) bool, computed again only when the
+    samples change: a demo scores every method's mesh against the same true-surface samples
+    (:func:`evaluate_scene`'s, drawn with one seed), and each call traces every view."""
+    last: list = []  # [points, normals, mask] of the previous call
+
+    def remembered(points: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+        if not (last and torch.equal(points, last[0]) and torch.equal(normals, last[1])):
+            last[:] = [points.clone(), normals.clone(), observed(points, normals)]
+        return last[2]
+
+    return remembered
 
 
 def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = None, threshold_m: float = 0.005,
