@@ -201,3 +201,33 @@ def test_the_neural_model_starts_at_its_start_model_and_the_profiles_move_a_seen
     fit = fit_neural_profiles(data, field, settings=settings, profile=ProfileSettings(rays_per_side=24))
     assert len(fit.losses) == 30
     assert 1.18 < _face_x(field.frozen_sdf()) < distilled - 0.015
+
+
+def test_reconstruct_fits_the_neural_model_to_the_profiles_and_refuses_what_it_does_not_take(room_data, tmp_path,
+                                                                                              monkeypatch):
+    """`rfsdf reconstruct --model neural --fit-to profiles` from a start model: neural.json
+    (the network's weights, its levels from the range resolution, one loss per step, the
+    start) and a mesh near the walls; the image fit's options are one line each, and so is
+    a start that is missing."""
+    from rfsdf.recon import neural_profiles
+
+    small = NeuralProfileSettings(width=32, depth=3, distil_steps=300, batch=2048)
+    monkeypatch.setattr(neural_profiles, "NeuralProfileSettings", lambda: small)  # the suite's seconds
+    write_measurements(tmp_path / "room.h5", room_data[1])
+    model = tmp_path / "model.toml"
+    model.write_text(tomli_w.dumps(_room([1.23, 0.0, 1.5], [0.0, -0.9, 1.5])))
+    args = ["reconstruct", str(tmp_path / "room.h5"), "--model", "neural", "--fit-to", "profiles"]
+    result = CliRunner().invoke(main, [*args, "--scene-model", str(model), "--steps", "3", "--out",
+                                       str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    row = json.loads((tmp_path / "run" / "neural.json").read_text())
+    assert row["steps"] == 3 and len(row["losses"]) == 3 and row["start"] == {"scene_model": str(model)}
+    assert row["levels"] == 8 and row["parameters"] > 0 and row["settings"]["width"] == 32  # 3.2 m box, 2.1 cm
+    mesh = trimesh.load(tmp_path / "run" / "mesh.ply")
+    truth = Scene(SceneSpec.model_validate(_room([1.2, 0.0, 1.5], [0.0, -0.9, 1.5])))
+    assert len(mesh.faces) > 0 and float(truth.sdf(torch.as_tensor(mesh.vertices)).abs().median()) < 0.1
+    for extra, message in ((["--scene-model", str(model), "--gain", "g.json"], "--gain: not for --model neural"),
+                           ([], "needs --scene-model, or --scene")):
+        result = CliRunner().invoke(main, [*args, *extra, "--out", str(tmp_path / "other")])
+        assert result.exit_code == 2 and message in result.output and result.output.count("\n") == 1, result.output
+        assert not (tmp_path / "other").exists()

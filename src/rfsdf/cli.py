@@ -372,10 +372,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     A calibration reference (--reference, or calibration.reference in --config) needs the
     --scene that places it; its result goes to calibration.json."""
     if model_kind != "neural":
-        given = [name for name, value in (("--image", image_path), ("--config", config_path), ("--resume", resume),
-                                          ("--reference", reference), ("--gain", gain_path)) if value]
-        if given:
-            raise click.UsageError(f"{', '.join(given)}: not for --model {model_kind}")
+        _refuse_options(f"--model {model_kind}", ("--image", image_path), ("--config", config_path),
+                        ("--resume", resume), ("--reference", reference), ("--gain", gain_path))
         if scene_model_path is None and scene_name is None:
             raise click.UsageError(f"--model {model_kind} needs --scene-model, or --scene to start from its truth")
         if model_kind == "hybrid" and fit_to != "profiles":
@@ -385,8 +383,18 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset, fit_to,
                                _device(device or "auto"), hybrid=model_kind == "hybrid", free_materials=free_materials)
         return
-    if scene_model_path is not None or fit_to != "images" or free_materials:
-        raise click.UsageError("--scene-model, --free-materials and --fit-to: only with --model primitive or hybrid")
+    if fit_to == "profiles":
+        _refuse_options("--model neural --fit-to profiles", ("--image", image_path), ("--config", config_path),
+                        ("--resume", resume), ("--reference", reference), ("--gain", gain_path),
+                        ("--free-materials", free_materials))
+        if scene_model_path is None and scene_name is None:
+            raise click.UsageError("--model neural --fit-to profiles needs --scene-model, or --scene to start from "
+                                   "its truth")
+        _reconstruct_neural_profiles(data, out, bounds, scene_model_path, scene_name, steps, start_offset)
+        return
+    if scene_model_path is not None or free_materials:
+        raise click.UsageError("--scene-model and --free-materials: only with --model primitive or hybrid, or "
+                               "--fit-to profiles")
     from .geometry import Grid
     from .mesh import export_mesh, extract_mesh
     from .radar import read_image, read_measurements
@@ -463,23 +471,16 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
     from .recon.hybrid import fit_hybrid_profiles, project_mesh, residual_amplitude_m
     from .recon.primitive import fit_primitive, material_text
     from .recon.range_profile import fit_primitive_profiles
-    from .scene import Scene, load_scene
-    from .scene_model import SceneModel, analytic_spec, load_scene_model
-
-    import torch
+    from .scene import Scene
+    from .scene_model import analytic_spec
 
     _refuse_overwriting_inputs(out, data, model_path)
     measurements = read_measurements(data)
-    acq = measurements.acquisition
-    # the true scene as the data's radar sees it (a closed room mesh around it: a shell)
-    truth_scene = (load_scene(scene_name).around_radar(torch.cat([acq.tx_m, acq.rx_m], 1).reshape(-1, 3))
-                   if scene_name is not None else None)
+    truth_scene, model = _start_model(data, measurements, bounds, model_path, scene_name, start_offset,
+                                      free_materials)
     truth = analytic_spec(truth_scene) if truth_scene is not None else None
-    model = (load_scene_model(model_path) if model_path is not None
-             else SceneModel.from_scene(truth_scene, start_offset, seed=0, free_materials=free_materials))
-    lower, upper = _image_box(data, measurements, bounds, None)
-    model.require_overlap(lower, upper, "the data's")
     model.require_free()
+    lower, upper = _image_box(data, measurements, bounds, None)
     model_lower, model_upper = model.spec.bounds.lower_m, model.spec.bounds.upper_m
     if hybrid:
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)
@@ -506,6 +507,62 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
         click.echo(f"  material: {material_text(row)}")
     if fit.calibration is not None:
         click.echo(f"  materials read from the data at the fitted model; gain: {fit.calibration}")
+
+
+def _start_model(data: Path, measurements, bounds: str | None, model_path: Path | None, scene_name: str | None,
+                 start_offset: float, free_materials: bool = False):
+    """(the true scene or None, the start model) of a model fit: the file ``model_path``, else
+    the scene ``scene_name`` with every length free, ``start_offset`` off (seed 0); refused
+    in one line unless it overlaps the data's box."""
+    from .scene import load_scene
+    from .scene_model import SceneModel, load_scene_model
+
+    import torch
+
+    acq = measurements.acquisition
+    # the true scene as the data's radar sees it (a closed room mesh around it: a shell)
+    truth_scene = (load_scene(scene_name).around_radar(torch.cat([acq.tx_m, acq.rx_m], 1).reshape(-1, 3))
+                   if scene_name is not None else None)
+    model = (load_scene_model(model_path) if model_path is not None
+             else SceneModel.from_scene(truth_scene, start_offset, seed=0, free_materials=free_materials))
+    lower, upper = _image_box(data, measurements, bounds, None)
+    model.require_overlap(lower, upper, "the data's")
+    return truth_scene, model
+
+
+def _reconstruct_neural_profiles(data: Path, out: Path, bounds: str | None, model_path: Path | None,
+                                 scene_name: str | None, steps: int, start_offset: float) -> None:
+    """``reconstruct --model neural --fit-to profiles``: the room-scale neural model
+    (rfsdf.recon.neural_profiles) distilled from the start model (``model_path``, or the
+    scene ``scene_name`` ``start_offset`` off), fitted to the range profiles for ``steps``,
+    meshed near its zero set at one range resolution: ``out``/neural.json and mesh.ply."""
+    import dataclasses
+
+    from .jsonio import write_json
+    from .mesh import export_mesh
+    from .radar import read_measurements
+    from .recon.neural_profiles import NeuralProfileSettings, fit_neural_model
+
+    _refuse_overwriting_inputs(out, data, model_path)
+    measurements = read_measurements(data)
+    _, model = _start_model(data, measurements, bounds, model_path, scene_name, start_offset)
+    settings = dataclasses.replace(NeuralProfileSettings(), steps=steps)
+    fitted = fit_neural_model(measurements, model, settings=settings, progress=True)
+    out.mkdir(parents=True, exist_ok=True)
+    start = {"scene_model": str(model_path)} if model_path is not None else {"scene": scene_name,
+                                                                             "start_offset_m": start_offset}
+    write_json(out / "neural.json", {**fitted.as_dict(), "losses": fitted.fit.losses, "start": start,
+                                     "settings": dataclasses.asdict(settings)})
+    click.echo(f"wrote {out / 'neural.json'} and {export_mesh(fitted.mesh, out / 'mesh.ply')} "
+               f"({len(fitted.mesh.faces)} faces)")
+    click.echo(f"  {fitted.summary()}")
+
+
+def _refuse_options(context: str, *options) -> None:
+    """click.UsageError naming each of ``options`` ((flag, value) pairs) that was given."""
+    given = [flag for flag, value in options if value]
+    if given:
+        raise click.UsageError(f"{', '.join(given)}: not for {context}")
 
 
 def _mm(values: list[float]) -> str:

@@ -26,13 +26,13 @@ from typing import Callable
 from .demo import claim_folder, load_scene_and_radar
 from .device import resolve_device
 from .jsonio import write_json
-from .mesh import export_mesh, extract_mesh_near_surface
-from .metrics import evaluate_scene, seen_surface_errors, specular_feet
+from .mesh import export_mesh
+from .metrics import evaluate_scene, once_per_samples, seen_surface_errors, specular_feet
 from .radar import read_measurements, simulate, write_measurements
 from .radar.coverage import observed_mask
 from .radar.waveform import range_resolution_m
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
-from .recon.neural_profiles import NeuralProfileSettings, distil_start, fit_neural_profiles
+from .recon.neural_profiles import NeuralProfileSettings, fit_neural_model
 from .recon.primitive import material_text
 from .recon.range_profile import ProfileSettings, fit_primitive_profiles
 from .scene import Scene
@@ -118,7 +118,8 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
     threshold = range_resolution_m(acq.bandwidth_hz) / 2
     feet = specular_feet(scene, acq)
     score = partial(_score, scene=scene, feet=feet, threshold_m=threshold, samples=settings.metric_samples,
-                    seed=settings.seed, observed=partial(observed_mask, acquisition=acq, occluder=scene.sdf))
+                    seed=settings.seed,
+                    observed=once_per_samples(partial(observed_mask, acquisition=acq, occluder=scene.sdf)))
     log(f"{len(feet)} specular foot points: where the data see the true surface; F at {threshold * 1e3:.1f} mm")
     earlier = json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").is_file() else {}
     rows = earlier.get("models", {})
@@ -128,7 +129,7 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
             rows[name] = json.loads((out / name / "model.json").read_text())
         elif name == "neural":
             seen = partial(seen_surface_errors, feet=feet, within_m=threshold)
-            rows[name] = _neural(out / name, measurements, start, scene, settings, score, seen, progress)
+            rows[name] = _neural(out / name, measurements, start, settings, score, seen, progress)
         else:
             rows[name] = _fitted_model(name, out / name, measurements, start, scene, settings, score, progress)
         timings[f"{name}_s"] = round(time.perf_counter() - clock, 2)
@@ -186,29 +187,18 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     return row
 
 
-def _neural(folder: Path, measurements, start: SceneModel, scene: Scene, settings: ModelDemoSettings, score, seen,
+def _neural(folder: Path, measurements, start: SceneModel, settings: ModelDemoSettings, score, seen,
             progress: bool) -> dict:
-    """Distil the start into the geometry network, fit it to the range profiles, mesh it near
-    its zero set at a voxel of one range resolution, score it (``seen``: an SDF's seen-surface
-    errors, for the distilled start too), and write its folder: ``model.json`` and ``mesh.ply``."""
-    clock = time.perf_counter()
-    field = distil_start(start, scene.lower_m.tolist(), scene.upper_m.tolist(),
-                         measurements.acquisition.bandwidth_hz, settings=settings.neural, seed=settings.seed,
-                         progress=progress)
-    sdf = field.frozen_sdf()
-    start_seen = seen(sdf)
-    fit = fit_neural_profiles(measurements, field, settings=settings.neural, profile=_profile_settings(settings),
-                              seed=settings.seed, progress=progress)
-    network = field.network
-    mesh = extract_mesh_near_surface(sdf, network.lower_m, network.upper_m,
-                                     range_resolution_m(measurements.acquisition.bandwidth_hz), progress=progress)
+    """The neural model from ``start`` (:func:`~rfsdf.recon.neural_profiles.fit_neural_model`),
+    scored (``seen``: an SDF's seen-surface errors, for the distilled start too), and its
+    folder: ``model.json`` and ``mesh.ply``."""
+    start_seen = {}
+    model = fit_neural_model(measurements, start, settings=settings.neural, profile=_profile_settings(settings),
+                             seed=settings.seed, progress=progress,
+                             distilled=lambda field: start_seen.update(seen(field.frozen_sdf())))
     folder.mkdir(parents=True, exist_ok=True)
-    export_mesh(mesh, folder / "mesh.ply")
-    row = {**score(mesh, sdf), "mesh": MODEL_MESHES["neural"],
-           "parameters": sum(p.numel() for p in field.geometry_parameters()),
-           "fit_s": round(time.perf_counter() - clock, 2),
-           "steps": len(fit.losses), "loss_first": fit.losses[0], "loss_last": fit.losses[-1],
-           "levels": network.encoding.levels, "distil_residual_mm": field.distil_residual_m * 1e3,
+    export_mesh(model.mesh, folder / "mesh.ply")
+    row = {**score(model.mesh, model.field.frozen_sdf()), "mesh": MODEL_MESHES["neural"], **model.as_dict(),
            "start_seen_surface": start_seen}
     write_json(folder / "model.json", row)
     return row

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import torch
 import trimesh
@@ -38,6 +39,7 @@ import trimesh
 from ..field import RadarField
 from ..field.encoding import levels_for
 from ..geometry.differential import gradient
+from ..mesh import extract_mesh_near_surface
 from ..progress import progress_bar
 from ..radar import Measurements
 from ..radar.waveform import range_resolution_m
@@ -48,8 +50,8 @@ from .primitive import PrimitiveField
 from .range_profile import ProfileSettings, fit_profiles
 from .schedules import exponential_decay
 
-__all__ = ["TRACE_STEP", "NeuralProfileSettings", "NeuralProfileField", "NeuralProfileFit", "distil_start",
-           "fit_neural_profiles"]
+__all__ = ["TRACE_STEP", "NeuralProfileSettings", "NeuralProfileField", "NeuralProfileFit", "NeuralModel",
+           "distil_start", "fit_neural_profiles", "fit_neural_model"]
 
 TRACE_STEP = 0.5  # sphere tracing's share of f per step: the network's |grad f| is only near 1
 NEAR_POINTS = 200_000  # points of the start's surface the samples near it are drawn about
@@ -199,3 +201,48 @@ def fit_neural_profiles(measurements: Measurements, field: NeuralProfileField, *
                           steps=settings.steps, settings=profile, progress=progress, prior=eikonal,
                           desc="neural model: profile fit")
     return NeuralProfileFit(field, losses, time.perf_counter() - clock)
+
+
+@dataclass(frozen=True)
+class NeuralModel:
+    """The neural model of a room as a run reports it: its field after the profile fit, the
+    fit, its mesh near the zero set (a voxel of one range resolution) and the seconds of the
+    whole (distillation, fit, mesh)."""
+
+    field: NeuralProfileField
+    fit: NeuralProfileFit
+    mesh: trimesh.Trimesh
+    seconds: float
+
+    def as_dict(self) -> dict:
+        return {"parameters": sum(p.numel() for p in self.field.geometry_parameters()),
+                "fit_s": round(self.seconds, 2), "profile_fit_s": round(self.fit.seconds, 2),
+                "steps": len(self.fit.losses), "loss_first": self.fit.losses[0], "loss_last": self.fit.losses[-1],
+                "levels": self.field.network.encoding.levels,
+                "distil_residual_mm": self.field.distil_residual_m * 1e3}
+
+    def summary(self) -> str:
+        row = self.as_dict()
+        return (f"{row['parameters']} weights, {row['levels']} encoding levels, distilled to "
+                f"{row['distil_residual_mm']:.1f} mm (L1), profile loss {row['loss_first']:.3f} -> "
+                f"{row['loss_last']:.3f} in {row['steps']} steps, {row['fit_s']:.0f} s")
+
+
+def fit_neural_model(measurements: Measurements, start: SceneModel, *,
+                     settings: NeuralProfileSettings = NeuralProfileSettings(),
+                     profile: ProfileSettings = ProfileSettings(), seed: int = 0, progress: bool = False,
+                     distilled: Callable[[NeuralProfileField], None] | None = None) -> NeuralModel:
+    """The neural model of ``measurements`` from ``start`` over the start's box: distilled
+    (:func:`distil_start`), fitted to the range profiles (:func:`fit_neural_profiles`) and
+    meshed. ``distilled`` is called with the field between the two (to score the start)."""
+    clock = time.perf_counter()
+    bandwidth_hz = measurements.acquisition.bandwidth_hz
+    field = distil_start(start, start.spec.bounds.lower_m, start.spec.bounds.upper_m, bandwidth_hz,
+                         settings=settings, seed=seed, progress=progress)
+    if distilled is not None:
+        distilled(field)
+    fit = fit_neural_profiles(measurements, field, settings=settings, profile=profile, seed=seed, progress=progress)
+    network = field.network
+    mesh = extract_mesh_near_surface(field.frozen_sdf(), network.lower_m, network.upper_m,
+                                     range_resolution_m(bandwidth_hz), progress=progress)
+    return NeuralModel(field, fit, mesh, time.perf_counter() - clock)
