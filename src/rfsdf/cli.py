@@ -343,12 +343,15 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
                    "--model primitive, the true scene, to report each free parameter's truth.")
 @click.option("--model", "model_kind", type=click.Choice(["neural", "primitive", "hybrid"]), default="neural",
               show_default=True,
-              help="neural: the GeRaF fit; primitive: the free parameters of --scene-model; hybrid: those plus a "
-                   "bounded neural residual (range profiles only).")
+              help="neural: the GeRaF fit (with --fit-to profiles, the room-scale network from a start model); "
+                   "primitive: the free parameters of --scene-model; hybrid: those plus a bounded neural residual "
+                   "(range profiles only).")
 @click.option("--scene-model", "scene_model_path", type=click.Path(path_type=Path), default=None,
-              help="With --model primitive: a scene file whose parameters may be free tables (docs/reference/formats.md).")
+              help="With --model primitive or hybrid: a scene file whose parameters may be free tables "
+                   "(docs/reference/formats.md); with --model neural --fit-to profiles: the network's start.")
 @click.option("--steps", type=click.IntRange(1, 100_000), default=150, show_default=True,
-              help="With --model primitive: gradient steps; hybrid: as many again for its residual.")
+              help="With --model primitive: gradient steps; hybrid: as many again for its residual; neural --fit-to "
+                   "profiles: the profile fit's steps.")
 @click.option("--start-offset", type=POSITIVE, default=0.15, show_default=True,
               help="With --model primitive and no --scene-model: start from --scene with every length free and moved "
                    "by up to this much [m] (seeded).")
@@ -356,8 +359,9 @@ def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
               help="With --model primitive/hybrid and no --scene-model: fit every object's material of --scene too "
                    "(undecided among metal, glass, concrete, plasterboard, wood), but its calibration_reference.")
 @click.option("--fit-to", "fit_to", type=click.Choice(["images", "profiles"]), default="images", show_default=True,
-              help="With --model primitive: the data term. images: the coherent renderer on the image grid (small "
-                   "scenes); profiles: each view's range profile, rendered by ray votes (rooms).")
+              help="The data term. images: the coherent renderer on the image grid (small scenes); profiles: each "
+                   "view's range profile, rendered by ray votes (rooms; with --model neural, the network "
+                   "distilled from --scene-model or --scene).")
 @_device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @_one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
@@ -366,7 +370,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
                     free_materials: bool, fit_to: str, device: str | None, gain_path: Path | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
-    fitted-scene.toml, mesh.ply.
+    fitted-scene.toml, mesh.ply; or (--model neural --fit-to profiles) a room's neural
+    model from a start model: neural.json, mesh.ply.
 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA.
     A calibration reference (--reference, or calibration.reference in --config) needs the
