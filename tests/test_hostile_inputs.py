@@ -391,10 +391,10 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     """A parameter table with no start, a start outside its bounds, a free parameter on a
     shape that has no such parameter or outside the objects' shapes, an unknown key, a model
     that does not overlap the data's box (or, in the demo, the scene's), a model with nothing
-    free, a model file with the neural fit, a bad free material (free not a boolean, fewer
-    than two classes, a start outside them, a held one without a start, an unknown or
-    repeated class, an unknown key): one error line naming the file and field, exit 2,
-    nothing written."""
+    free, a model file with the neural image fit, the neural profile fit with no start, a
+    bad free material (free not a boolean, fewer than two classes, a start outside them, a
+    held one without a start, an unknown or repeated class, an unknown key): one error line
+    naming the file and field, exit 2, nothing written."""
     model = tmp_path / "m.toml"
     head = 'name = "m"\n[bounds]\nlower_m = [-0.05, -0.05, -0.05]\nupper_m = [0.05, 0.05, 0.05]\n'
     ball = '[[objects]]\nname = "ball"\nmaterial = "metal"\n[objects.shape]\ntype = "sphere"\nradius_m = 0.01\n'
@@ -433,6 +433,6 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     model.write_text(head + ball)
     assert "no free parameter, so nothing to fit" in _refused(args, tmp_path)
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--scene-model", model], tmp_path)
-    assert "--scene-model, --free-materials and --fit-to: only with --model primitive" in line, line
+    assert "--scene-model and --free-materials: only with --model primitive or hybrid, or --fit-to profiles" in line
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--fit-to", "profiles"], tmp_path)
-    assert "--scene-model, --free-materials and --fit-to: only with --model primitive" in line, line
+    assert "--model neural --fit-to profiles needs --scene-model, or --scene" in line, line
