@@ -481,11 +481,10 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
 
     _refuse_overwriting_inputs(out, data, model_path)
     measurements = read_measurements(data)
-    truth_scene, model = _start_model(data, measurements, bounds, model_path, scene_name, start_offset,
-                                      free_materials)
+    truth_scene, model, (lower, upper) = _start_model(data, measurements, bounds, model_path, scene_name,
+                                                      start_offset, free_materials)
     truth = analytic_spec(truth_scene) if truth_scene is not None else None
     model.require_free()
-    lower, upper = _image_box(data, measurements, bounds, None)
     model_lower, model_upper = model.spec.bounds.lower_m, model.spec.bounds.upper_m
     if hybrid:
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)
@@ -516,9 +515,9 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
 
 def _start_model(data: Path, measurements, bounds: str | None, model_path: Path | None, scene_name: str | None,
                  start_offset: float, free_materials: bool = False):
-    """(the true scene or None, the start model) of a model fit: the file ``model_path``, else
-    the scene ``scene_name`` with every length free, ``start_offset`` off (seed 0); refused
-    in one line unless it overlaps the data's box."""
+    """(the true scene or None, the start model, the data's box (lower, upper) [m]) of a model
+    fit: the file ``model_path``, else the scene ``scene_name`` with every length free,
+    ``start_offset`` off (seed 0); refused in one line unless it overlaps the data's box."""
     from .scene import load_scene
     from .scene_model import SceneModel, load_scene_model
 
@@ -532,7 +531,7 @@ def _start_model(data: Path, measurements, bounds: str | None, model_path: Path 
              else SceneModel.from_scene(truth_scene, start_offset, seed=0, free_materials=free_materials))
     lower, upper = _image_box(data, measurements, bounds, None)
     model.require_overlap(lower, upper, "the data's")
-    return truth_scene, model
+    return truth_scene, model, (lower, upper)
 
 
 def _reconstruct_neural_profiles(data: Path, out: Path, bounds: str | None, model_path: Path | None,
@@ -550,7 +549,7 @@ def _reconstruct_neural_profiles(data: Path, out: Path, bounds: str | None, mode
 
     _refuse_overwriting_inputs(out, data, model_path)
     measurements = read_measurements(data)
-    _, model = _start_model(data, measurements, bounds, model_path, scene_name, start_offset)
+    _, model, _ = _start_model(data, measurements, bounds, model_path, scene_name, start_offset)
     settings = dataclasses.replace(NeuralProfileSettings(), steps=steps)
     fitted = fit_neural_model(measurements, model, settings=settings, progress=True)
     out.mkdir(parents=True, exist_ok=True)
