@@ -108,6 +108,38 @@ def test_observed_fraction_of_a_sphere_seen_by_one_view_is_its_cap(tmp_path):
         assert ball.observed_recall > 0.99
 
 
+def test_the_observed_mask_traces_only_the_samples_in_a_cone_and_equals_tracing_them_all(tmp_path):
+    """Two balls on the x axis, three views of 4 cm arrays, one of them on the axis (the right
+    ball shadows the left): the mask equals the slow one that traces a shadow ray for every
+    sample and view, and the shadows change it."""
+    from rfsdf.radar import Acquisition
+    from rfsdf.radar.coverage import DEFAULT_TOLERANCE_RAD, observed_mask
+    from rfsdf.radar.scattering import lit_mask
+
+    scene = _two_ball_scene(tmp_path)
+    centres = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.7, 0.0, 0.7]], dtype=torch.float64)
+    offsets = torch.tensor([[0.0, 0.02, 0.02], [0.0, -0.02, -0.02]], dtype=torch.float64)
+    acq = Acquisition(centres[:, None] + offsets, centres[:, None] - offsets, torch.tensor([79e9]), -centres)
+    n = torch.nn.functional.normalize(torch.randn(4000, 3, generator=torch.Generator().manual_seed(0)), dim=1)
+    p = torch.cat([n[:2000] * 0.02 + torch.tensor([-0.05, 0, 0]), n[2000:] * 0.02 + torch.tensor([0.05, 0, 0])])
+
+    def slow(occluder):
+        seen = torch.zeros(len(p), dtype=torch.bool)
+        for v in range(acq.shape[0]):
+            tx, rx = acq.tx_m[v].mean(0), acq.rx_m[v].mean(0)
+            to_centre = torch.nn.functional.normalize(0.5 * (tx + rx) - p, dim=1)
+            elements = torch.cat([acq.tx_m[v], acq.rx_m[v]])
+            to_elements = torch.nn.functional.normalize(elements[None] - p[:, None], dim=2)
+            cone = torch.arccos((to_elements * to_centre[:, None]).sum(2).clamp(-1, 1)).max(dim=1).values
+            tilt = torch.arccos((n * to_centre).sum(1).clamp(-1, 1))
+            seen |= lit_mask(p, n, tx, rx, occluder=occluder) & (tilt <= cone + DEFAULT_TOLERANCE_RAD)
+        return seen
+
+    shadowed = slow(scene.sdf)
+    assert torch.equal(observed_mask(p, n, acq, scene.sdf), shadowed)
+    assert (slow(None) & ~shadowed)[:2000].sum() > 20  # the left ball's cap facing +x, behind the right one
+
+
 def test_accuracy_and_completeness_are_split_by_whether_the_true_surface_is_observed(tmp_path):
     """The left ball is reconstructed exactly and observed; the right one 3 mm too large and
     not observed: the split puts ~0 mm (the meshing error) near the seen surface and ~3 mm near the unseen one."""
