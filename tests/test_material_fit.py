@@ -109,43 +109,58 @@ def test_the_material_head_tells_a_metal_ball_from_a_wooden_one(tiny_radar, tmp_
     assert class_accuracy(list(estimates.values())) is None  # so neither counts in the accuracy
 
 
-def _calibrated_two_balls(tiny_radar, tmp_path, reference: str, *, scale: float = 1.0):
-    """The two balls' data (times ``scale``, a radar gain), fitted as in
-    :func:`_fit_two_balls` with the gain unknown and ``reference`` (NAME=MATERIAL) rendered
-    as stated; returns the reference's Calibration and the wooden ball's estimate."""
+@pytest.fixture(scope="module")
+def two_balls_start(tiny_radar, tmp_path_factory):
+    """The two balls' scene, their data and the field's state regressed onto the true SDF:
+    simulated and regressed once for every calibrated fit below (each would redo the same)."""
     scene = _two_balls()
     data = simulate(scene, tiny_radar, seed=0, spacing_m=tiny_radar.acquisition().wavelength_m / 6)
-    data = dataclasses.replace(data, data=data.data * scale)
     grid = Grid((-0.06,) * 3, (0.06,) * 3, (16,) * 3)
-    config = ReconConfig.model_validate({
+    trainer = Trainer(Problem(data, grid), _calibrated_config("metal_ball=metal"), tmp_path_factory.mktemp("start"))
+    fit_to_image(trainer.field, grid.lower_m, grid.upper_m, scene.sdf, None, steps=300, lr=3e-3, batch=2048,
+                 eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
+    return scene, data, grid, {k: v.clone() for k, v in trainer.field.state_dict().items()}
+
+
+def _calibrated_config(reference: str) -> ReconConfig:
+    return ReconConfig.model_validate({
         "field": {"width": 32, "depth": 4, "levels": 2}, "init": {"method": "sphere"},
         "render": {"element_step": 1, "refresh_every": 5},
         "sampling": {"views_per_step": 6, "data_batch": 1024, "eikonal_batch": 512},
         "train": {"steps": 40, "checkpoint_every": 40, "lr": 1e-3, "lr_end": 1e-4, "geometry_delay": 0.99,
                   "material_lr_scale": 10.0}, "calibration": {"reference": reference}})
+
+
+def _calibrated_two_balls(two_balls_start, tmp_path, reference: str, *, scale: float = 1.0):
+    """The two balls' data (times ``scale``, a radar gain), fitted as in
+    :func:`_fit_two_balls` with the gain unknown and ``reference`` (NAME=MATERIAL) rendered
+    as stated, from the regressed start; returns the reference's Calibration and the wooden
+    ball's estimate."""
+    scene, data, grid, start = two_balls_start
+    data = dataclasses.replace(data, data=data.data * scale)
+    config = _calibrated_config(reference)
     reference = scene_reference(scene, config.calibration, data.acquisition)
     problem = Problem(data, grid, known_materials=reference.labels(tuple(config.field.materials)))
     trainer = Trainer(problem, config, tmp_path / f"run-{reference.name}-{reference.material}-{scale}")
-    fit_to_image(trainer.field, grid.lower_m, grid.upper_m, scene.sdf, None, steps=300, lr=3e-3, batch=2048,
-                 eikonal_weight=0.1, generator=torch.Generator().manual_seed(0))
+    trainer.field.load_state_dict(start)
     fit = trainer.fit()
     estimates = {e.name: e for e in object_materials(fit.field, scene, data.acquisition)}
     return check_reference(trainer, reference), estimates["wood_ball"]
 
 
-def test_a_metal_reference_calibrates_the_gain_and_a_wrong_one_is_flagged(tiny_radar, tmp_path):
+def test_a_metal_reference_calibrates_the_gain_and_a_wrong_one_is_flagged(two_balls_start, tmp_path):
     """The metal ball named as the reference: the gain fitted to the data follows the radar's
     (data 3 x brighter: 3 x the gain, to 1 %), is the simulator's within 30 % (measured 1.28:
     the regressed glints are dimmer), and the wooden ball reads wood; the data want 0.89 x
     the reference's |Gamma|. The wooden ball called metal, or the metal one wood, disagree
     with the rest of the scene by more than AGREEMENT (measured 0.23 and 3.8)."""
-    right, wood = _calibrated_two_balls(tiny_radar, tmp_path, "metal_ball=metal")
-    brighter, _ = _calibrated_two_balls(tiny_radar, tmp_path, "metal_ball=metal", scale=3.0)
+    right, wood = _calibrated_two_balls(two_balls_start, tmp_path, "metal_ball=metal")
+    brighter, _ = _calibrated_two_balls(two_balls_start, tmp_path, "metal_ball=metal", scale=3.0)
     assert brighter.gain / right.gain == pytest.approx(3.0, rel=0.01)
     assert right.gain == pytest.approx(SIMULATED_GAIN, rel=0.3)
     assert right.warning() is None, right
     assert wood.predicted == "wood", wood
     for wrong in ("wood_ball=metal", "metal_ball=wood"):
-        calibration, _ = _calibrated_two_balls(tiny_radar, tmp_path, wrong)
+        calibration, _ = _calibrated_two_balls(two_balls_start, tmp_path, wrong)
         assert calibration.warning() is not None and wrong in calibration.warning(), calibration
 
