@@ -41,12 +41,13 @@ def observed_mask(points: torch.Tensor, normals: torch.Tensor, acquisition: Acqu
     for v in range(acquisition.shape[0]):
         tx_centre, rx_centre = acquisition.tx_m[v].mean(0), acquisition.rx_m[v].mean(0)
         centre, elements = 0.5 * (tx_centre + rx_centre), torch.cat([acquisition.tx_m[v], acquisition.rx_m[v]])
-        distance = (centre - p).norm(dim=1)  # (N,)
-        tilt = torch.arccos(((centre - p) * n).sum(1).div(distance).clamp(-1, 1))
+        towards = centre - p  # (N, 3)
+        distance = towards.norm(dim=1)  # (N,)
+        tilt = torch.arccos((towards * n).sum(1).div(distance).clamp(-1, 1))
         reach = float((elements - centre).norm(dim=1).max())
         bound = torch.where(distance > reach, torch.asin((reach / distance).clamp(max=1.0)), math.pi)
         near = (~observed & (tilt <= bound + tolerance_rad)).nonzero().squeeze(1)
-        to_centre = (centre - p[near]) / distance[near, None]  # (M, 3)
+        to_centre = towards[near] / distance[near, None]  # (M, 3)
         to_elements = torch.nn.functional.normalize(elements[None] - p[near, None], dim=2)  # (M, E, 3)
         cone = torch.arccos((to_elements * to_centre[:, None]).sum(2).clamp(-1, 1)).max(dim=1).values
         candidates = near[tilt[near] <= cone + tolerance_rad]
