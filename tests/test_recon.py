@@ -273,8 +273,8 @@ def dilated_starts(sphere_data):
 def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, dilated_starts, threads):
     """From a 3 mm dilation towards the truth, at 1 and at 2 torch threads (the sums' last
     bits, and with them the fit's path, follow the thread count and the CPU; the starts are
-    regressed once, at the suite's count), judged over five seeds: every fit moves inward, and the median ends within lambda/2, having moved
-    more than lambda/4. Not each fit within lambda/2: with 6 views of a 4 cm array the
+    regressed once, at the suite's count), judged over five seeds: every fit moves inward,
+    and the median ends within lambda/2, having moved more than lambda/4. Not each fit within lambda/2: with 6 views of a 4 cm array the
     amplitude loss of the ball's radius ripples with period about a millimetre (the glint
     and the limb interfere; local minima near 20, 21 and 22 mm of about the same depth), and
     a fit stops in one of them. It used to reach lambda/4 helped by a bias: with frozen
