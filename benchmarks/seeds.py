@@ -2,10 +2,14 @@
 demo's data (simulated, imaged and CLEANed once), fitted with several seeds of the fit's
 own random draws (`[train] seed`: the warm start's points, the views, voxels and surface
 samples of each step). Per seed: the warm start's and the fit's full, observed-surface and
-per-object scores; then their mean, standard deviation, min and max.
+per-object scores, and with a material head each object's material readout and the class
+accuracy; then their mean, standard deviation, min and max.
 
 Usage: python benchmarks/seeds.py [--seeds 0,1,2] [--scene S] [--radar R] [--out PATH]
        [--recon '{"init": {"threshold": "auto"}}']   (reconstruction settings over the defaults)
+       [--as-demo]   (calibrated as `rfsdf demo` is: the scene's calibration_reference rendered as
+       its material; without it one gain is fitted at each step, relative materials)
+       [--gain G]   (hold the radar gain G instead, e.g. a calibration capture's: absolute materials)
 The default output is benchmarks/results/seeds.json for the demo's scene and radar, else
 seeds-SCENE-RADAR.json.
 """
@@ -21,13 +25,15 @@ from pathlib import Path
 import numpy as np
 from demo_data import demo_data
 
-from rfsdf.demo import DemoSettings
+from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.jsonio import to_json
+from rfsdf.material_estimates import calibration_text, estimate_materials, scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.recon.calibration import check_reference
 
 
 def _scores(metrics) -> dict[str, float]:
@@ -37,6 +43,19 @@ def _scores(metrics) -> dict[str, float]:
     row.update({f"recall_{name}": m.recall for name, m in metrics.objects.items()})
     row["objects_found"] = sum(m.found for m in metrics.objects.values())
     return row
+
+
+def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict:
+    """The fit's material readout as the demo reports it: per object its true and predicted
+    class, reflectivity and observed share, and the class accuracy over the objects counted."""
+    calibration = None if reference is None else check_reference(trainer, reference)
+    report = estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
+                                calibration=calibration_text(trainer.problem.gain, calibration),
+                                reference=None if reference is None else reference.name)
+    return {"accuracy": report.accuracy, "calibration": report.calibration,
+            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "reflectivity": o.reflectivity,
+                                 "observed_fraction": o.observed_fraction, "reference": o.reference}
+                        for o in report.objects}}
 
 
 def _spread(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:
@@ -52,10 +71,13 @@ def main() -> None:
     parser.add_argument("--radar", default=DemoSettings.radar)
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--recon", type=json.loads, default={}, help="ReconConfig overrides (JSON tables).")
+    parser.add_argument("--as-demo", action="store_true",
+                        help="calibrate as rfsdf demo does, by the scene's calibration_reference")
+    parser.add_argument("--gain", type=float, default=None, help="hold this radar gain in the fit")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
 
-    settings = DemoSettings(scene=args.scene, radar=args.radar)
+    settings = DemoSettings(scene=args.scene, radar=args.radar, gain=args.gain, relative=not args.as_demo)
     default = (args.scene, args.radar) == (DemoSettings.scene, DemoSettings.radar)
     out = args.out or Path("benchmarks/results/" + ("seeds.json" if default else
                                                     f"seeds-{Path(args.scene).stem}-{Path(args.radar).stem}.json"))
@@ -69,13 +91,22 @@ def main() -> None:
     runs = []
     for seed in seeds:
         overrides = {**args.recon, "train": {**args.recon.get("train", {}), "seed": seed}}
-        config = ReconConfig.model_validate(overrides)
+        config = with_scene_reference(ReconConfig.model_validate(overrides), scene, settings)
+        reference = (None if config.calibration.reference is None
+                     else scene_reference(scene, config.calibration, data.measurements.acquisition))
+        known = None if reference is None else reference.labels(tuple(config.field.materials))
         with tempfile.TemporaryDirectory() as run:
-            fit = Trainer(Problem(data.measurements, grid, clean=clean), config, run).fit()
-        runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
-                     "neural": _scores(score(mesh(fit.field))), "seconds_per_step": fit.seconds_per_step})
+            trainer = Trainer(Problem(data.measurements, grid, clean=clean, gain=args.gain, known_materials=known),
+                              config, run)
+            fit = trainer.fit()
+            neural = mesh(fit.field)
+            runs.append({"seed": seed, "warm_start": _scores(score(mesh(fit.warm_field))),
+                         "neural": _scores(score(neural)), "seconds_per_step": fit.seconds_per_step})
+            if fit.field.material_head is not None:
+                runs[-1]["materials"] = _materials(trainer, fit, neural, reference, scene, demo.seed)
         print(to_json(runs[-1], indent=None), flush=True)
-    result = {"scene": args.scene, "radar": args.radar, "seeds": seeds, "recon": args.recon, "runs": runs,
+    result = {"scene": args.scene, "radar": args.radar, "seeds": seeds, "recon": args.recon, "as_demo": args.as_demo,
+              "gain": args.gain, "runs": runs,
               "warm_start": _spread([r["warm_start"] for r in runs]), "neural": _spread([r["neural"] for r in runs])}
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(to_json(result))

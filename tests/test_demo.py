@@ -116,15 +116,15 @@ def test_the_demo_calibrates_by_the_scenes_reference_unless_told_otherwise():
     with ``relative``, not over a reference already given, not without a material head."""
     import dataclasses
 
-    from rfsdf.demo import DemoSettings, _with_scene_reference
+    from rfsdf.demo import DemoSettings, with_scene_reference
     from rfsdf.recon import ReconConfig
     from rfsdf.scene import load_scene
 
     scene, settings, config = load_scene("objects"), DemoSettings(), ReconConfig()
-    assert _with_scene_reference(config, scene, settings).calibration.reference == "metal_ball=metal"
-    assert _with_scene_reference(config, scene, dataclasses.replace(settings, relative=True)).calibration.reference is None
+    assert with_scene_reference(config, scene, settings).calibration.reference == "metal_ball=metal"
+    assert with_scene_reference(config, scene, dataclasses.replace(settings, relative=True)).calibration.reference is None
     given = ReconConfig.model_validate({"calibration": {"reference": "glass_jar=glass"}})
-    assert _with_scene_reference(given, scene, settings).calibration.reference == "glass_jar=glass"
+    assert with_scene_reference(given, scene, settings).calibration.reference == "glass_jar=glass"
     headless = ReconConfig.model_validate({"field": {"materials": []}})
-    assert _with_scene_reference(headless, scene, settings).calibration.reference is None
-    assert _with_scene_reference(config, load_scene("sphere"), settings).calibration.reference is None
+    assert with_scene_reference(headless, scene, settings).calibration.reference is None
+    assert with_scene_reference(config, load_scene("sphere"), settings).calibration.reference is None

@@ -187,7 +187,7 @@ def require_demo_images(inputs: SceneAndRadar, settings: DemoSettings) -> None:
                          "--model primitive, hybrid or all") from None
 
 
-def _with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
+def with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
     """``config`` calibrated by the scene's ``calibration_reference`` (rendered as its own
     material), unless a reference is already set, the settings ask for relative materials,
     or there is no material head, or the settings hold a known gain."""
@@ -218,7 +218,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
     require_demo_images(inputs, settings)
-    config = _with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
+    config = with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
     claim_folder(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
