@@ -35,22 +35,20 @@ from rfsdf.scene_model import SceneModel
 BRIGHT = 0.1  # voxels whose observed amplitude reaches this share of the peak in some view
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--scene", default="benchmarks/scenes/counter.toml")
-    parser.add_argument("--reference", default="calibration_sphere")
-    parser.add_argument("--out", type=Path, default=None)
-    args = parser.parse_args()
-    out = args.out or Path(f"benchmarks/results/object-brightness-{Path(args.scene).stem}.json")
-    settings = DemoSettings()
-    scene = load_scene(args.scene)
-    data = simulate(scene, load_radar(settings.radar), seed=settings.seed, max_samples=settings.max_surface_samples)
+def object_gains(scene, data, settings: DemoSettings, sdf=None, sample_seed: int | None = None
+                 ) -> tuple[np.ndarray, int]:
+    """(objects,) a_i, how much brighter than the renderer the data want each object of
+    ``scene`` by the NNLS split of the bright voxels' powers, and how many voxels those were. The renderer's surface samples
+    lie on ``sdf`` ((N, 3) -> (N,) [m]; default the scene's exact SDF, a surface with errors
+    otherwise), each reflecting by its own object's true material, drawn with ``sample_seed``
+    (default the demo's seed)."""
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
     renderer = CoherentRenderer(data, grid)
-    field = PrimitiveField(SceneModel.from_table(scene.spec.model_dump(mode="json"), f"{args.scene} (nothing free)"))
+    field = PrimitiveField(SceneModel.from_table(scene.spec.model_dump(mode="json"), f"{scene.name} (nothing free)"))
+    sdf = sdf or field.sdf
     with torch.no_grad():
-        values = torch.cat([field.sdf(chunk.double()).float() for chunk in grid.points().split(1 << 16)])
-    renderer.refresh(field.sdf, values, torch.Generator().manual_seed(settings.seed))
+        values = torch.cat([sdf(chunk.double()).float() for chunk in grid.points().split(1 << 16)])
+    renderer.refresh(sdf, values, torch.Generator().manual_seed(settings.seed if sample_seed is None else sample_seed))
     anchors = renderer.candidates.anchors.double()
     probabilities = field.material(anchors).float()
     with torch.no_grad():
@@ -66,14 +64,27 @@ def main() -> None:
     parts = [image((owner == i).float()) for i in range(len(scene.objects))]
     design = torch.stack([part.abs().flatten() ** 2 for part in parts], 1).double().numpy()
     powers, _ = nnls(design, (renderer.observed[:, index].abs().flatten() ** 2).double().numpy())
-    gains = np.sqrt(powers)
+    return np.sqrt(powers), len(index)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--scene", default="benchmarks/scenes/counter.toml")
+    parser.add_argument("--reference", default="calibration_sphere")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    out = args.out or Path(f"benchmarks/results/object-brightness-{Path(args.scene).stem}.json")
+    settings = DemoSettings()
+    scene = load_scene(args.scene)
+    data = simulate(scene, load_radar(settings.radar), seed=settings.seed, max_samples=settings.max_surface_samples)
+    gains, bright = object_gains(scene, data, settings)
     names = [obj.name for obj in scene.objects]
     reference = gains[names.index(args.reference)]
     rows = {name: float(gain / reference) for name, gain in zip(names, gains)}
     for name, ratio in rows.items():
         print(f"{name:<22} the data want {ratio:.2f} x the renderer's brightness (relative to {args.reference})")
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(to_json({"scene": args.scene, "reference": args.reference, "bright_voxels": int(len(index)),
+    out.write_text(to_json({"scene": args.scene, "reference": args.reference, "bright_voxels": bright,
                             "want_relative_to_reference": rows}))
 
 
