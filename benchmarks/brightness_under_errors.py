@@ -17,8 +17,8 @@ over ``--fields`` random fields, and the readout's class accuracy over the objec
 first row (sigma 0) is the control: the exact surface with the renderer's random surface
 samples drawn anew (seeds 1..fields), the spread the renderer's own quadrature adds.
 
-Usage: python benchmarks/brightness_under_errors.py [--scene objects] [--sigma-mm 0.25,0.5,1,2]
-       [--correlation-mm 10,20] [--fields 4] [--out benchmarks/results/brightness-under-errors-objects.json]
+Usage: python benchmarks/brightness_under_errors.py [--scene objects] [--sigma-mm 0.25,0.5,1,2,4]
+       [--correlation-mm 10] [--fields 3] [--out benchmarks/results/brightness-under-errors-objects.json]
 """
 
 from __future__ import annotations
@@ -33,12 +33,11 @@ from object_brightness import object_gains
 
 from rfsdf.demo import DemoSettings
 from rfsdf.jsonio import to_json
-from rfsdf.materials import class_reflectivities, reflectivity_class
+from rfsdf.materials import MATERIAL_CLASSES, class_reflectivities, reflectivity_class
 from rfsdf.radar import load_radar, simulate
 from rfsdf.scene import load_scene
 
 MODES = 256  # plane waves in each random field
-CLASSES = ("metal", "glass", "concrete", "plasterboard", "wood")  # the material head's default
 
 
 def smooth_error(sigma_m: float, correlation_m: float, seed: int):
@@ -53,9 +52,9 @@ def smooth_error(sigma_m: float, correlation_m: float, seed: int):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scene", default="objects")
-    parser.add_argument("--sigma-mm", default="0.25,0.5,1,2")
-    parser.add_argument("--correlation-mm", default="10,20")
-    parser.add_argument("--fields", type=int, default=4)
+    parser.add_argument("--sigma-mm", default="0.25,0.5,1,2,4")
+    parser.add_argument("--correlation-mm", default="10")
+    parser.add_argument("--fields", type=int, default=3)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/brightness-under-errors-{Path(args.scene).stem}.json")
@@ -68,9 +67,8 @@ def main() -> None:
     exact, bright = object_gains(scene, data, settings)
     print(f"exact surfaces: data / renderer per object {np.round(exact, 3).tolist()} ({bright} bright voxels)")
     rows = []
-    control = [(0.0, 0.0)]
-    for sigma_mm, correlation_mm in control + list(itertools.product(*(map(float, a.split(",")) for a in
-                                                                      (args.sigma_mm, args.correlation_mm)))):
+    errors = itertools.product(*(map(float, a.split(",")) for a in (args.sigma_mm, args.correlation_mm)))
+    for sigma_mm, correlation_mm in [(0.0, 0.0), *errors]:  # the control first
         factors = []
         for seed in range(args.fields):
             if sigma_mm == 0:
@@ -80,7 +78,7 @@ def main() -> None:
                 gains, _ = object_gains(scene, data, settings, sdf=lambda x, d=delta: scene.sdf(x.double()) + d(x))
             factors.append(gains / exact)
         factors = np.array(factors)  # (fields, objects)
-        classes = reflectivity_class(true_gamma * factors, CLASSES, data.acquisition.center_frequency_hz)
+        classes = reflectivity_class(true_gamma * factors, MATERIAL_CLASSES, data.acquisition.center_frequency_hz)
         row = {"sigma_mm": sigma_mm, "correlation_mm": correlation_mm,
                "accuracy": float((classes == truth).mean()),
                "metal_read_as_dielectric": int(((truth == "metal") & (classes != "metal")).sum()),
