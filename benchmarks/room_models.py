@@ -8,7 +8,7 @@ object of the data's scene, the case the hybrid's residual is for.
 
 Usage: python benchmarks/room_models.py [--scene l-room] [--models primitive hybrid neural]
        [--model-scene S] [--start-offset 0.15] [--seed 0] [--max-samples 3000000]
-       [--work /tmp/rfsdf-rooms]
+       [--work /tmp/rfsdf-rooms] [--hybrid-joint]   (the hybrid's primitives and residual fitted together)
 """
 
 from __future__ import annotations
@@ -34,12 +34,14 @@ def main() -> None:
     parser.add_argument("--max-samples", type=int, default=ModelDemoSettings.max_surface_samples,
                         help="the simulator's facet budget")
     parser.add_argument("--work", type=Path, default=Path("/tmp/rfsdf-rooms"))
+    parser.add_argument("--hybrid-joint", action="store_true",
+                        help="fit the hybrid's primitives and residual together, then the residual alone")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     stem = Path(args.scene).stem
     settings = dataclasses.replace(ModelDemoSettings(), scene=args.scene, radar=args.radar,
                                    start_offset_m=args.start_offset, seed=args.seed,
-                                   max_surface_samples=args.max_samples)
+                                   max_surface_samples=args.max_samples, hybrid_joint=args.hybrid_joint)
     start = None
     if args.model_scene is not None:
         start = SceneModel.from_scene(load_scene(args.model_scene), args.start_offset, args.seed)

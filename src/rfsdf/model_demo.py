@@ -49,7 +49,8 @@ class ModelDemoSettings:
     """What the model demo runs; ``QUICK_MODELS`` is the test suite's seconds-long version.
 
     ``residual_range_resolutions``: the hybrid residual's amplitude in range resolutions
-    c / 2B of the radar; ``scene_model``: a model file (None: the true scene, every length
+    c / 2B of the radar; ``hybrid_joint``: fit the hybrid's primitives and residual together
+    (then the residual alone), not the residual after the primitives; ``scene_model``: a model file (None: the true scene, every length
     free, ``start_offset_m`` off, drawn with ``seed``, and with ``free_materials`` every
     material but the scene's calibration reference)."""
 
@@ -62,6 +63,7 @@ class ModelDemoSettings:
     steps: int = 150
     residual_steps: int = 100
     residual_range_resolutions: float = RANGE_RESOLUTIONS
+    hybrid_joint: bool = False
     max_surface_samples: int = 3_000_000
     rays_per_side: int = 48
     metric_samples: int = 50_000
@@ -167,7 +169,7 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz, settings.residual_range_resolutions)
         fit = fit_hybrid_profiles(measurements, start, amplitude_m=amplitude, lower_m=scene.lower_m,
                                   upper_m=scene.upper_m, steps=settings.steps, residual_steps=settings.residual_steps,
-                                  settings=profile, progress=progress)
+                                  joint=settings.hybrid_joint, settings=profile, progress=progress)
     fitted = Scene(fit.fitted_spec(), start.base_dir)
     mesh, sdf = fitted.ground_truth_mesh(), fitted.sdf
     if name == "hybrid":  # the primitive mesh moved onto the residual's zero set
@@ -183,6 +185,7 @@ def _fitted_model(name: str, folder: Path, measurements, start: SceneModel, scen
     if name == "hybrid":
         row["residual_amplitude_m"] = fit.field.amplitude_m
         row["residual_weights"] = sum(p.numel() for p in fit.field.residual_parameters())
+        row["joint"] = settings.hybrid_joint
     write_json(folder / "model.json", row)
     return row
 
