@@ -40,13 +40,12 @@ from rfsdf.radar.surface_plan import surface_samples
 from rfsdf.recon.primitive import PrimitiveField
 from rfsdf.recon.range_profile import ProfileSettings, fit_profiles
 from rfsdf.scene import Scene, load_scene
-from rfsdf.scene_model import SceneModel
+from rfsdf.scene_model import POSITION_FIELDS, SIZE_FIELDS, SceneModel
 from rfsdf.scene_spec import SceneSpec
 
 SCENE = "benchmarks/scenes/pillar-room.toml"
 RADAR = load_radar("room-60g")
 ACQUISITION = RADAR.acquisition()
-LENGTHS = ("center_m", "half_extents_m", "radius_m", "height_m")
 
 
 def scaled(scene: Scene, factor: float, about) -> Scene:
@@ -57,9 +56,9 @@ def scaled(scene: Scene, factor: float, about) -> Scene:
     def walk(node):
         if isinstance(node, dict):
             for key, value in node.items():
-                if key == "center_m":
+                if key in POSITION_FIELDS and value is not None:
                     node[key] = (about + factor * (np.asarray(value) - about)).tolist()
-                elif key in LENGTHS:
+                elif key in SIZE_FIELDS and value is not None:
                     node[key] = (factor * np.asarray(value)).tolist() if isinstance(value, list) else factor * value
                 else:
                     walk(value)
