@@ -2,7 +2,8 @@
 
 Runs ``rfsdf.model_demo.run_model_demo`` on a scene (default ``l-room`` by ``room-60g``) into
 ``--work/<scene>`` (the simulated data are kept there and reused) and writes the models'
-scores to ``benchmarks/results/room-models-<scene>.json``. ``--model-scene`` starts the fit
+scores to ``benchmarks/results/room-models-<scene>.json`` (``-joint`` appended to both with
+``--hybrid-joint``). ``--model-scene`` starts the fit
 from another scene's model (every length free, ``--start-offset`` off): one that lacks an
 object of the data's scene, the case the hybrid's residual is for.
 
@@ -45,7 +46,8 @@ def main() -> None:
     start = None
     if args.model_scene is not None:
         start = SceneModel.from_scene(load_scene(args.model_scene), args.start_offset, args.seed)
-    folder = args.work / (stem if args.model_scene is None else f"{stem}-from-{Path(args.model_scene).stem}")
+    name = stem if args.model_scene is None else f"{stem}-from-{Path(args.model_scene).stem}"
+    folder = args.work / (f"{name}-joint" if args.hybrid_joint else name)  # a demo folder holds one setting
     result = run_model_demo(folder, settings, args.models, start=start)
     print(models_table(result))
     out = args.out or Path(f"benchmarks/results/room-models-{folder.name}.json")
