@@ -49,17 +49,20 @@ ACQUISITION = RADAR.acquisition()
 
 
 def scaled(scene: Scene, factor: float, about) -> Scene:
-    """``scene`` with every length scaled by ``factor`` about the point ``about`` (3,) [m]."""
+    """``scene`` with every length scaled by ``factor`` about the point ``about`` (3,) [m]:
+    points move away from it, sizes and translations (offsets, not points) grow."""
     about = np.asarray(about, dtype=float)
     table = scene.spec.model_dump(mode="json", exclude_none=True)
+    point = lambda value: (about + factor * (np.asarray(value) - about)).tolist()  # noqa: E731
+    length = lambda value: (factor * np.asarray(value)).tolist()  # noqa: E731
 
     def walk(node):
         if isinstance(node, dict):
             for key, value in node.items():
-                if key in POSITION_FIELDS and value is not None:
-                    node[key] = (about + factor * (np.asarray(value) - about)).tolist()
-                elif key in SIZE_FIELDS and value is not None:
-                    node[key] = (factor * np.asarray(value)).tolist() if isinstance(value, list) else factor * value
+                if key in SIZE_FIELDS + ("translate_m",) and value is not None:
+                    node[key] = length(value)
+                elif key in POSITION_FIELDS and value is not None:
+                    node[key] = point(value)
                 else:
                     walk(value)
         elif isinstance(node, list):
@@ -67,8 +70,7 @@ def scaled(scene: Scene, factor: float, about) -> Scene:
                 walk(value)
 
     walk(table["objects"])
-    for key in ("lower_m", "upper_m"):
-        table["bounds"][key] = (about + factor * (np.asarray(table["bounds"][key]) - about)).tolist()
+    table["bounds"] = {key: point(value) for key, value in table["bounds"].items()}
     table["name"] = f"{scene.name}-x{factor:g}"
     return Scene(SceneSpec.model_validate(table), scene.base_dir)
 
