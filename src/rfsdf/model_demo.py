@@ -50,9 +50,10 @@ class ModelDemoSettings:
 
     ``residual_range_resolutions``: the hybrid residual's amplitude in range resolutions
     c / 2B of the radar; ``hybrid_joint``: fit the hybrid's primitives and residual together
-    (then the residual alone), not the residual after the primitives; ``scene_model``: a model file (None: the true scene, every length
-    free, ``start_offset_m`` off, drawn with ``seed``, and with ``free_materials`` every
-    material but the scene's calibration reference)."""
+    (then the residual alone), not the residual after the primitives; ``scene_model``: a
+    model file (None: the true scene, every length free, ``start_offset_m`` off, drawn with
+    ``seed``, and with ``free_materials`` every material but the scene's calibration
+    reference)."""
 
     scene: str = "l-room"
     radar: str = "room-60g"
