@@ -100,3 +100,21 @@ def test_differentiable_in_reflectivity_and_positions():
     loss.backward()
     assert torch.isfinite(pts.grad).all() and pts.grad.abs().sum() > 0
     assert torch.isfinite(c.grad.real).all() and c.grad.abs().sum() > 0
+
+
+def test_per_frequency_reflectivity_against_dense_and_gradcheck():
+    """c (V, K, Q), e.g. a facet's phase integral at each frequency: each frequency's data are
+    A_k c_k (the dense reference, row by row), and the hand-written backward passes gradcheck
+    in the positions and in c."""
+    acq, pts = _random_acquisition(12), _points(13, q=3).double()
+    v, t, r, k = acq.shape
+    c = torch.randn(v, k, len(pts), dtype=torch.complex128, generator=torch.Generator().manual_seed(1))
+    y = SensingOperator(acq).forward(pts, c)
+    dense = dense_matrix(acq, pts.numpy()).reshape(v, t, r, k, len(pts))
+    expected = torch.einsum("vtrkq,vkq->vtrk", torch.as_tensor(dense).to(c), c)
+    torch.testing.assert_close(y, expected, rtol=1e-9, atol=1e-12)
+    constant = c[:, :1].expand(v, k, len(pts)).contiguous()
+    torch.testing.assert_close(SensingOperator(acq).forward(pts, constant), SensingOperator(acq).forward(pts, c[:, 0]))
+    op = SensingOperator(acq)
+    args = (pts.clone().requires_grad_(True), c.clone().requires_grad_(True))
+    assert torch.autograd.gradcheck(lambda p, cc: op.forward(p, cc), args, eps=1e-7, atol=1e-6, rtol=1e-4)

@@ -139,15 +139,18 @@ class SensingOperator:
     def forward(self, points: torch.Tensor, c: torch.Tensor, *, progress: bool = False) -> torch.Tensor:
         """y = A c : (V, T, R, K) complex64 (complex128 for float64 points).
 
-        points : (Q, 3) [m], scene frame. c : (Q,) or (V, Q) complex reflectivities (one
-        set for all views, or one per view, e.g. angle-dependent scattering).
-        Differentiable in ``c`` and ``points``.
+        points : (Q, 3) [m], scene frame. c : (Q,), (V, Q) or (V, K, Q) complex
+        reflectivities (one set for all views, one per view, e.g. angle-dependent
+        scattering, or one per view and frequency, e.g. a facet's phase integral,
+        ``radar/facets.py``). Differentiable in ``c`` and ``points``.
         """
         points = as_points(points)
-        v_total = self.acq.shape[0]
-        if tuple(c.shape) not in ((points.shape[0],), (v_total, points.shape[0])):
-            raise ValueError(f"c must have shape (Q,) or (V, Q) = ({points.shape[0]},) or ({v_total}, {points.shape[0]}), got {tuple(c.shape)}")
-        c = c.to(_complex_dtype(points.dtype)).expand(v_total, -1)
+        v_total, k_total, q = self.acq.shape[0], self.acq.shape[3], points.shape[0]
+        if tuple(c.shape) not in ((q,), (v_total, q), (v_total, k_total, q)):
+            raise ValueError(f"c must have shape (Q,), (V, Q) or (V, K, Q) = ({q},), ({v_total}, {q}) or "
+                             f"({v_total}, {k_total}, {q}), got {tuple(c.shape)}")
+        c = c.to(_complex_dtype(points.dtype))
+        c = c.reshape(-1, 1, q).expand(v_total, 1, q) if c.dim() < 3 else c  # (V, 1 or K, Q)
         return _ApplyA.apply(points, c, self, progress)
 
     def forward_weighted(self, points: torch.Tensor, c: torch.Tensor,
@@ -159,7 +162,7 @@ class SensingOperator:
         points = as_points(points)
         if tuple(c.shape) != (self.acq.shape[0], points.shape[0]):
             raise ValueError(f"c must have shape (V, Q) = ({self.acq.shape[0]}, {points.shape[0]}), got {tuple(c.shape)}")
-        return self._apply(points.detach(), c.detach().to(_complex_dtype(points.dtype)), progress, weight)
+        return self._apply(points.detach(), c.detach().to(_complex_dtype(points.dtype))[:, None], progress, weight)
 
     def adjoint(self, y: torch.Tensor, points: torch.Tensor, *, per_view: bool = False, progress: bool = False) -> torch.Tensor:
         """x = A^H y at ``points`` (Q, 3): (Q,) complex, or (V, Q) with ``per_view``.
@@ -211,14 +214,14 @@ class SensingOperator:
     @torch.no_grad()
     def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False,
                weight: Callable[[slice, slice], torch.Tensor] | None = None) -> torch.Tensor:
-        """A c for per-view c (V, Q), times ``weight`` (see forward_weighted): (V, T, R, K).
+        """A c for c (V, 1 or K, Q), times ``weight`` (see forward_weighted): (V, T, R, K).
         Each chunk's data are added into one (V, K, T, R) sum as it comes: kept apart until
         the end, the 45,680 chunks of a 10 x 10 m room filled 24 GiB (measured)."""
         total = None
         for views, pts in progress_bar(list(self._chunks(points.shape[0], points.device)), desc="A c",
                                        enabled=progress):
             u, w = self._factors(views, points[pts])  # (v, K, T, q), (v, K, R, q)
-            cw = c[views, None, None, pts]
+            cw = c[views, :, None, pts]  # (v, 1 or K, 1, q)
             if weight is not None:
                 cw = cw * weight(views, pts)[:, :, None, :].to(cw.dtype)
             y = torch.matmul(u * cw, w.transpose(-1, -2))  # (v, K, T, R)
@@ -251,7 +254,7 @@ class SensingOperator:
 
     @torch.no_grad()
     def _apply_vjp(self, points: torch.Tensor, c: torch.Tensor, grad_y: torch.Tensor, need_points: bool):
-        """Gradients of a real loss with respect to c (V, Q) and points (Q, 3), given g = dL/dy."""
+        """Gradients of a real loss with respect to c (V, 1 or K, Q) and points (Q, 3), given g = dL/dy."""
         acq = self.acq
         k = self._wavenumbers(points.device).to(points.dtype if points.dtype == torch.float64 else torch.float32)
         g = grad_y.conj().permute(0, 3, 1, 2)  # (V, K, T, R)
@@ -263,15 +266,18 @@ class SensingOperator:
             u, w = self._phasors(*tx[:2], False), self._phasors(*rx[:2], False)
             g_v = g[views]
             per_tx = u * torch.matmul(g_v, w)  # (v, K, T, q): sum_j conj(g) A over Rx
-            grad_c[views, pts] = per_tx.sum(dim=(1, 2)).conj()
+            per_frequency = per_tx.sum(dim=2)  # (v, K, q)
+            grad_c[views, :, pts] = (per_frequency if c.shape[1] > 1 else per_frequency.sum(1, keepdim=True)).conj()
             if need_points:
+                weights = c[views, :, None, pts]  # (v, 1 or K, 1, q)
                 per_rx = w * torch.matmul(g_v.transpose(-1, -2), u)  # (v, K, R, q): sum_i over Tx
                 total = 0
                 for per_element, (_, _, unit, dlog) in ((per_tx, tx), (per_rx, rx)):
+                    per_element = weights * per_element  # (v, K, E, q)
                     plain = per_element.sum(1)  # (v, E, q)
                     weighted = (k[None, :, None, None] * per_element).sum(1)
                     total = total + (plain[..., None] * dlog).sum(1) - 1j * (weighted[..., None] * unit).sum(1)
-                grad_points[pts] += (c[views, pts, None] * total).real.sum(0)
+                grad_points[pts] += total.real.sum(0)
         return grad_c, grad_points
 
 
@@ -303,4 +309,4 @@ class _ApplyAH(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad_x):
         (points,) = ctx.saved_tensors
-        return ctx.op._apply(points.detach(), grad_x), None, None, None
+        return ctx.op._apply(points.detach(), grad_x[:, None]), None, None, None
