@@ -15,7 +15,7 @@ from .geometry.grid import Grid
 from .limits import require_memory
 from .progress import progress_bar
 
-__all__ = ["evaluate_on_grid", "extract_mesh", "extract_mesh_near_surface", "export_mesh", "MESH_FORMATS"]
+__all__ = ["evaluate_on_grid", "extract_mesh", "extract_mesh_near_surface", "mesh_blocks", "export_mesh", "MESH_FORMATS"]
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 _CHUNK_POINTS = 1 << 18  # 262k points per SDF call: bounded memory at any resolution
@@ -91,22 +91,38 @@ def extract_mesh_near_surface(
     crossed = index[np.abs(_values(sdf, centres, device)) <= np.sqrt(3) / 2 * block_m + voxel_m]
     if not len(crossed):
         raise ValueError(f"no surface at level 0 inside the box {lower.tolist()} .. {upper.tolist()}")
+    return mesh_blocks(sdf, lower + crossed * block_m, voxel_m, block_voxels, device=device, progress=progress)
+
+
+def mesh_blocks(sdf: Callable[[torch.Tensor], torch.Tensor], origins_m: np.ndarray, voxel_m: float,
+                block_voxels: int, *, device=None, progress: bool = False) -> trimesh.Trimesh:
+    """Marching cubes of the zero set of ``sdf`` in cubic blocks of ``block_voxels``^3 voxels
+    ``voxel_m`` [m] with lower corners ``origins_m`` (B, 3) [m], one mesh with the vertices
+    the blocks share merged. RuntimeError past the memory limit; ValueError when no block
+    holds surface."""
     corners = block_voxels + 1  # each block's voxel corners, its far faces shared with the next block's
-    require_memory(_MARCHING_BYTES_PER_VOXEL * len(crossed) * corners**3,
-                   f"marching cubes on {len(crossed)} blocks of {corners}^3 voxels ({voxel_m * 1e3:.3g} mm)")
-    offsets = np.stack(np.meshgrid(*(np.arange(corners),) * 3, indexing="ij"), -1).reshape(-1, 3) * voxel_m
+    require_memory(_MARCHING_BYTES_PER_VOXEL * len(origins_m) * corners**3,
+                   f"marching cubes on {len(origins_m)} blocks of {corners}^3 voxels ({voxel_m * 1e3:.3g} mm)")
+    # one lattice for all blocks, by integer index: the points two blocks share are the same
+    # numbers, so the surface cannot fall between them by rounding
+    base = np.min(origins_m, axis=0)
+    index = np.round((np.asarray(origins_m) - base) / voxel_m).astype(np.int64)  # (B, 3) each block's first point
+    offsets = np.stack(np.meshgrid(*(np.arange(corners),) * 3, indexing="ij"), -1).reshape(-1, 3)
+    per_call = max(1, (1 << 20) // corners**3)  # about a million points per SDF call
     parts = []
-    for start in progress_bar(range(0, len(crossed), 256), desc="mesh blocks", enabled=progress):
-        origins = lower + crossed[start:start + 256] * block_m  # (b, 3)
-        points = torch.as_tensor((origins[:, None, :] + offsets[None]).reshape(-1, 3))
-        values = _values(sdf, points, device).reshape(len(origins), corners, corners, corners)
-        for origin, block in zip(origins, values):
+    for start in progress_bar(range(0, len(index), per_call), desc="mesh blocks", enabled=progress):
+        first = index[start:start + per_call]  # (b, 3)
+        points = torch.as_tensor(base + (first[:, None, :] + offsets[None]).reshape(-1, 3) * voxel_m)
+        values = _values(sdf, points, device).reshape(len(first), corners, corners, corners)
+        # a surface exactly on a lattice plane (an analytic face on the grid) has f = 0 there, and
+        # neither block beside it changes sign: count those points as just outside
+        values[values == 0] = 1e-9 * voxel_m
+        for origin, block in zip(base + first * voxel_m, values):
             if block.min() < 0 < block.max():
                 verts, faces, _, _ = measure.marching_cubes(block, level=0.0, spacing=(voxel_m,) * 3)
                 parts.append(trimesh.Trimesh(verts + origin, faces, process=False))
     if not parts:
-        raise ValueError(f"no surface at level 0 inside the box {lower.tolist()} .. {upper.tolist()} "
-                         f"at {voxel_m * 1e3:.3g} mm voxels")
+        raise ValueError(f"no surface at level 0 in the {len(origins_m)} blocks at {voxel_m * 1e3:.3g} mm voxels")
     mesh = trimesh.util.concatenate(parts)
     mesh.merge_vertices()  # the blocks' shared faces
     return mesh
