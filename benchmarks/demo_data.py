@@ -27,6 +27,6 @@ def demo_data(settings: DemoSettings | None = None) -> DemoData:
     measurements = simulate(scene, load_radar(settings.radar), seed=settings.seed,
                             max_samples=settings.max_surface_samples,
                             samples_per_wavelength=settings.samples_per_wavelength,
-                            stratified=settings.stratified_samples)
+                            stratified=settings.stratified_samples, surface=settings.surface)
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
     return DemoData(settings, scene, measurements, matched_filter(measurements, grid))

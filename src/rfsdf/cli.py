@@ -158,7 +158,8 @@ def scene_export(name_or_file: str, out: Path):
     click.echo(f"wrote {path} and {len(sc.objects)} mesh(es) in {path.parent / 'meshes'}")
 
 
-def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: int = 150_000):
+def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: int = 150_000,
+              surface: str = "facets"):
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from .scene import load_scene
 
@@ -168,7 +169,8 @@ def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: 
     check_materials_in_band(sc, rad, source=scene_name)
     click.echo(sc.summary())
     click.echo(rad.summary())
-    measurements = simulate(sc, rad, seed=seed, device=device, max_samples=max_samples, progress=True)
+    measurements = simulate(sc, rad, seed=seed, device=device, max_samples=max_samples, surface=surface,
+                            progress=True)
     click.echo(measurements.metadata["surface_sampling"])
     return sc, measurements
 
@@ -230,12 +232,15 @@ _RAY_HELP = "Run as Ray tasks: bare --ray starts a local Ray instance, --ray ADD
               help="With --random: scenes at once in a local process pool.")
 @click.option("--ray", "ray_address", is_flag=False, flag_value="local", default=None, help=_RAY_HELP)
 @click.option("--max-samples", type=click.IntRange(1, 10**8), default=150_000, show_default=True,
-              help="Most surface samples: points lambda/3 apart when they fit, else facets sized to their range "
-                   "(a room), else refused with the count it needs.")
+              help="Most surface samples: the surface on lambda/3 cells when points that far apart would fit, "
+                   "else facets sized to their range (a room), else refused with the count it needs.")
+@click.option("--surface", type=click.Choice(["facets", "points"]), default="facets", show_default=True,
+              help="How the surface is summed: flat facets of its zero set with their phase integrated (converged), "
+                   "or points (a Monte Carlo quadrature, for comparison).")
 @_device_option()
 @_one_line_errors
 def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,
-                 workers: int, ray_address: str | None, max_samples: int, device: str):
+                 workers: int, ray_address: str | None, max_samples: int, surface: str, device: str):
     """Simulate radar measurements of a scene and write them to an HDF5 file, or (--random N)
     a dataset of N random scenes: OUT/scene-NNNNN.toml + .h5 and OUT/dataset.json."""
     if (scene_name is None) == (random_count is None):
@@ -255,7 +260,7 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
     from .radar import write_measurements
 
     _refuse_overwriting_inputs(out, scene_name, radar_name)
-    _, measurements = _simulate(scene_name, radar_name, seed, _device(device), max_samples)
+    _, measurements = _simulate(scene_name, radar_name, seed, _device(device), max_samples, surface)
     write_measurements(out, measurements)
     click.echo(f"wrote {out}")
 

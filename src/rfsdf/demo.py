@@ -73,7 +73,8 @@ class DemoSettings:
     seed: int = 0
     max_surface_samples: int = 150_000  # of the simulator
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH  # of the simulator's surface
-    stratified_samples: bool = True  # the simulator's samples one per stratum of equal area
+    surface: str = "facets"  # the simulator's surface: facets of the zero set (converged) or points
+    stratified_samples: bool = True  # the simulator's points (surface "points") one per stratum of equal area
     recon: dict = field(default_factory=dict)  # ReconConfig overrides (nested tables)
     # the radar gain held in the fit (absolute |Gamma|): SIMULATED_GAIN for this simulator's
     # data, or a separate capture's (rfsdf calibrate); None fits one gain at each step (against
@@ -240,7 +241,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
                                 samples_per_wavelength=settings.samples_per_wavelength,
-                                stratified=settings.stratified_samples,
+                                stratified=settings.stratified_samples, surface=settings.surface,
                                 device=device, progress=progress)
         write_measurements(out / "measurements.h5", measurements)
     lap("simulate_s")

@@ -45,6 +45,7 @@ _CELLS_ACROSS = 3  # marching-cubes cells across an object's thinnest part, at l
 _MAX_SPLITS = 12  # rounds of splitting triangles in four (4096 x smaller edges at most)
 _THIN_QUANTILE = 0.1  # of the depths below an object's surface points: its thinnest part's half thickness
 _NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
+_CREASE_CELLS = 3  # a crease's triangles are refined to a third of the marching-cubes cell
 
 
 def scene_presets() -> list[str]:
@@ -354,14 +355,21 @@ class Scene:
         with torch.no_grad():
             return pts[obj.sdf(pts) < np.linalg.norm(coarse.voxel_m)]
 
+    def _object_box(self, near: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corners (3,) [m] of a box around an object's points ``near``
+        (:meth:`_near_points` of the coarse grid), clipped to the bounds, two coarse voxels wider."""
+        pad = 2 * self._coarse_grid(_COARSE_RESOLUTION).voxel_m
+        lower = np.maximum(near.min(0).values.numpy() - pad, self.lower_m - pad)
+        upper = np.minimum(near.max(0).values.numpy() + pad, self.upper_m + pad)
+        return lower, upper
+
     def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
         """Marching cubes of an analytic object: ``_MESH_RESOLUTION`` cells along its longest
         edge, or, where its thinnest part is thinner than ``_CELLS_ACROSS`` such cells (a
         plasterboard sheet, a window pane in a room), cells that fit that many times across
         it, evaluated near its surface only (:func:`~rfsdf.mesh.extract_mesh_near_surface`)."""
-        near, pad = self._near_points(obj, _COARSE_RESOLUTION), 2 * self._coarse_grid(_COARSE_RESOLUTION).voxel_m
-        lower = np.maximum(near.min(0).values.numpy() - pad, self.lower_m - pad)
-        upper = np.minimum(near.max(0).values.numpy() + pad, self.upper_m + pad)
+        near = self._near_points(obj, _COARSE_RESOLUTION)
+        lower, upper = self._object_box(near)
         sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface
         longest = float((upper - lower).max())
         thickness = 2 * _half_thickness(obj.sdf, near)
@@ -447,6 +455,51 @@ class Scene:
                 samples = samples.select(self.sdf(samples.points) > -0.25 * edges)
         return SurfaceSamples(samples.points.float(), samples.normals.float(), samples.area_m2.float(),
                               samples.object_index, samples.corners_m)
+
+    def zero_set_meshes(self, cell_m: float, *, seed: int = 0) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+        """Each object's surface as a mesh on its zero set, (vertices (N, 3) float64 [m], faces
+        (F, 3) int64, unit normals (N, 3) at the vertices): analytic objects by marching cubes
+        of cells ``cell_m`` [m] on a grid offset by a random fraction of a cell (``seed``:
+        another seed, another mesh), vertices projected onto the exact zero set, creases
+        refined (:mod:`~rfsdf.geometry.zero_set`); mesh objects as their own triangles split
+        to edges within ``cell_m``, with zero normals (flat: no height to restore)."""
+        rng = np.random.default_rng(seed)
+        meshes = []
+        for obj in self.objects:
+            offset = rng.random(3) * cell_m
+            if obj.mesh is not None:
+                vertices, faces = trimesh.remesh.subdivide_to_size(obj.mesh.vertices, obj.mesh.faces, max_edge=cell_m,
+                                                                   max_iter=_MAX_SPLITS)
+                vertices = torch.as_tensor(vertices, dtype=torch.float64)
+                meshes.append((vertices, torch.as_tensor(faces, dtype=torch.int64), torch.zeros_like(vertices)))
+                continue
+            lower, upper = self._object_box(self._near_points(obj, _COARSE_RESOLUTION))
+            sdf64 = lambda p, sdf=obj.sdf: sdf(p.double())  # noqa: E731
+            mesh = extract_mesh_near_surface(sdf64, lower - offset, upper, cell_m)
+            vertices = geo.project_to_zero_set(sdf64, torch.as_tensor(mesh.vertices))
+            vertices, faces = geo.refine_creases(sdf64, vertices, torch.as_tensor(mesh.faces, dtype=torch.int64),
+                                                 min_edge_m=cell_m / _CREASE_CELLS)
+            meshes.append((vertices, faces, geo.vertex_normals(sdf64, vertices)))
+        return meshes
+
+    def zero_set_facets(self, cell_m: float, *, seed: int = 0, meshes=None, move=None) -> SurfaceSamples:
+        """Every object's surface as flat triangles that converge to it: the facets of
+        :meth:`zero_set_meshes` (``meshes``, when the caller has them), each moved to the
+        surface's mean height over it (:func:`~rfsdf.geometry.facet_geometry`). ``move``:
+        (vertices (N, 3), normals (N, 3)) -> vertices, applied first (a perturbed surface).
+        Triangles buried in another object (before the move) are dropped."""
+        parts = []
+        for index, (vertices, faces, normals) in enumerate(meshes or self.zero_set_meshes(cell_m, seed=seed)):
+            moved = vertices if move is None else move(vertices, normals)
+            centroids, face_normals, area, corners = geo.facet_geometry(moved, faces, normals)
+            keep = area > 0
+            if len(self.objects) > 1:
+                with torch.no_grad():
+                    keep &= self.sdf(vertices[faces].mean(1)) > -0.25 * cell_m
+            parts.append((centroids[keep], face_normals[keep], area[keep], torch.full((int(keep.sum()),), index),
+                          corners[keep]))
+        points, normals, area, index, corners = (torch.cat(t) for t in zip(*parts))
+        return SurfaceSamples(points.float(), normals.float(), area.float(), index, corners)
 
     def sample_spacing(self, spacing_m: float, max_samples: int | None = None) -> float:
         """The spacing [m] :meth:`sample_surface` uses: ``spacing_m``, or wider where the

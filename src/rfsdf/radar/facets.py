@@ -32,7 +32,7 @@ import torch
 
 from .acquisition import SPEED_OF_LIGHT, Acquisition
 
-__all__ = ["triangle_phase_integral", "facet_phase_integrals", "facet_weight"]
+__all__ = ["triangle_phase_integral", "facet_phase_integrals", "corner_paths", "facet_phase_weights", "facet_weight"]
 
 # spreads of the corners' phases [rad] below which F is taken from its Taylor expansion: its
 # next term is ~ spread^3 / 100; the divided difference's rounding ~ eps / spread
@@ -57,16 +57,15 @@ def triangle_phase_integral(alpha: torch.Tensor) -> torch.Tensor:
     low, high = alpha.min(-1).values, alpha.max(-1).values
     middle = alpha.sum(-1) - low - high
     spread = high - low
+    close = spread <= _CLOSE[alpha.dtype]
     right, left = _first_difference(middle, high), _first_difference(low, middle)
-    scale = -2 / spread
-    out = torch.complex(scale * (right[0] - left[0]), scale * (right[1] - left[1]))
-    close = (spread <= _CLOSE[alpha.dtype]).nonzero().squeeze(1)
-    if len(close):  # about the mean: exp(-j mean) (1 - E[d^2] / 2), E[d^2] = sum (a_i - mean)^2 / 12
-        near = alpha[close]
-        mean = near.mean(-1)
-        taper = 1 - ((near - mean[:, None]) ** 2).sum(-1) / 24
-        out[close] = torch.complex(torch.cos(mean) * taper, -torch.sin(mean) * taper)
-    return out.reshape(shape)
+    scale = -2 / torch.where(close, torch.ones_like(spread), spread)  # finite gradients where unused
+    # about the mean where the spread is small: exp(-j mean) (1 - E[d^2] / 2), E[d^2] = sum (a_i - mean)^2 / 12
+    mean = alpha.mean(-1)
+    taper = 1 - ((alpha - mean[:, None]) ** 2).sum(-1) / 24
+    real = torch.where(close, torch.cos(mean) * taper, scale * (right[0] - left[0]))
+    imaginary = torch.where(close, -torch.sin(mean) * taper, scale * (right[1] - left[1]))
+    return torch.complex(real, imaginary).reshape(shape)
 
 
 @numba.njit(cache=True)
@@ -127,6 +126,31 @@ def facet_phase_integrals(extra_path_m: torch.Tensor, wavenumbers_rad_m: torch.T
     return torch.from_numpy(out).to(extra_path_m.device)
 
 
+def corner_paths(centroids_m: torch.Tensor, corners_m: torch.Tensor, tx_m: torch.Tensor,
+                 rx_m: torch.Tensor) -> torch.Tensor:
+    """(Q, 3) [m] float64: how much longer the path Tx -> corner -> Rx is than the path through
+    the centroid, for triangles with centroids (Q, 3) [m] and corners (Q, 3, 3) [m] relative
+    to them, seen from phase centres ``tx_m`` and ``rx_m`` (3,) [m]; differentiable."""
+    p, corners = centroids_m.double(), corners_m.double()
+    s, r = tx_m.to(p), rx_m.to(p)
+
+    def path(x):  # (..., 3) -> (...) [m]
+        return (s - x).norm(dim=-1) + (r - x).norm(dim=-1)
+
+    return path(p[:, None, :] + corners) - path(p)[:, None]
+
+
+def facet_phase_weights(centroids_m: torch.Tensor, corners_m: torch.Tensor, tx_m: torch.Tensor, rx_m: torch.Tensor,
+                        wavenumbers_rad_m: torch.Tensor) -> torch.Tensor:
+    """(K, Q) complex: F of each triangle at each wavenumber (K,) [rad/m] seen from one
+    view's phase centres (:func:`corner_paths`), differentiable in the centroids and corners
+    (the renderer's; the simulator runs the compiled :func:`facet_phase_integrals`). In the
+    centroids' dtype: complex64 for float32."""
+    extra = corner_paths(centroids_m, corners_m, tx_m, rx_m)  # (Q, 3)
+    alpha = wavenumbers_rad_m.to(extra)[:, None, None] * extra[None]  # (K, Q, 3)
+    return triangle_phase_integral(alpha.to(centroids_m.dtype))
+
+
 def facet_weight(acquisition: Acquisition, centroids_m: torch.Tensor,
                  corners_m: torch.Tensor) -> Callable[[slice, slice], torch.Tensor]:
     """The ``weight`` of :meth:`~rfsdf.radar.operator.SensingOperator.forward_weighted` for
@@ -136,14 +160,8 @@ def facet_weight(acquisition: Acquisition, centroids_m: torch.Tensor,
     tx, rx = acquisition.tx_m.mean(1).double(), acquisition.rx_m.mean(1).double()  # (V, 3)
 
     def weight(views: slice, pts: slice) -> torch.Tensor:
-        p, corners = centroids_m[pts].double(), corners_m[pts].double()
-        out = []
-        for s, r in zip(tx[views].to(p.device), rx[views].to(p.device)):
-            def path(x):  # (..., 3) -> (...) [m]
-                return (s - x).norm(dim=-1) + (r - x).norm(dim=-1)
-
-            extra = path(p[:, None, :] + corners) - path(p)[:, None]  # (q, 3): each corner's path over the centroid's
-            out.append(facet_phase_integrals(extra, k))  # (K, q)
-        return torch.stack(out)
+        p, corners = centroids_m[pts], corners_m[pts]
+        return torch.stack([facet_phase_integrals(corner_paths(p, corners, s, r), k)  # (K, q) each
+                            for s, r in zip(tx[views], rx[views])])
 
     return weight

@@ -31,14 +31,15 @@ SIMULATED_GAIN = 1.0
 own (Fresnel x lobe x area through A, no antenna or receiver gain), so a renderer of the
 same physics predicts them in their units."""
 
-# The data are a Monte Carlo sum over random surface samples, and its error is a speckle that
-# no other sampling reproduces: two samplings of the 2 cm ball (6 views) differ by 21 % of the
-# MF amplitude energy at lambda/3, 5 % at lambda/6 and 1.2 % at lambda/12 (error ~ spacing^2).
-# That speckle was the smooth scenes' only diffuse return, and it is what a material estimate
-# would read on oblique faces, so the default samples are stratified (one per stratum of equal
-# area: two samplings of the ball data differ 5 % instead of 19 %, study "roughness"); a
-# diffuse return that does not depend on the sampling comes from stated roughness
-# (rfsdf.roughness). ``stratified=False`` keeps the earlier random samples for comparison.
+# Points summed as a quadrature leave a speckle that no other sampling reproduces: two
+# samplings of the 2 cm ball (6 views) differ by 21 % of the MF amplitude energy at lambda/3,
+# 5 % at lambda/6 and 1.2 % at lambda/12 (error ~ spacing^2), and two lambda/3 stratified
+# samplings of the demo scene correlate only 0.78-0.93 per view, a floor above the signal of a
+# millimetre's error. So the surface is summed as flat facets of its zero set, whose phase is
+# integrated in closed form (rfsdf.geometry.zero_set): on lambda/3 cells two meshes of the demo
+# scene agree to 0.9996 per view (benchmarks/forward_convergence.py). A diffuse return that
+# does not depend on the sampling comes from stated roughness (rfsdf.roughness).
+# ``surface="points"`` keeps the points (``stratified=False`` the earlier random ones).
 SAMPLES_PER_WAVELENGTH = 3
 
 def surface_reflectivity(
@@ -97,24 +98,26 @@ def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, stratified: bool = True, device=None, progress: bool = False,
+    shadows: bool = True, stratified: bool = True, surface: str = "facets", device=None, progress: bool = False,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
-    The surface is sampled ``lambda / samples_per_wavelength`` apart (``spacing_m``
-    overrides) when that takes at most ``max_samples`` samples; else as flat facets over
-    the surface some view sees, no coarser than the physics allows, or ValueError
-    (:mod:`~rfsdf.radar.surface_plan`; its summary is the metadata's "surface_sampling"). Rough objects need samples at most half their correlation length apart,
-    else ValueError. ``stratified`` places them one per stratum of
-    equal area (:meth:`~rfsdf.scene.Scene.sample_surface`; the default), which cuts the
-    quadrature's random error on faces turned away from the radar (study ``roughness``). Noise is added
+    The surface is covered on cells ``lambda / samples_per_wavelength`` (``spacing_m``
+    overrides) when points that far apart would number at most ``max_samples``: by flat
+    facets of its zero set (``surface="facets"``, the default, the converged quadrature;
+    ``seed`` offsets their grid) or by points (``"points"``; ``stratified`` places them one
+    per stratum of equal area, :meth:`~rfsdf.scene.Scene.sample_surface`, which cuts their
+    random error, study ``roughness``); else as flat facets over the surface some view sees,
+    no coarser than the physics allows, or ValueError (:mod:`~rfsdf.radar.surface_plan`; its
+    summary is the metadata's "surface_sampling"). Rough objects need samples at most half
+    their correlation length apart, else ValueError. Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
     """
     acq = radar.acquisition()
     samples, plan = surface_samples(scene, acq, spacing_m or acq.wavelength_m / samples_per_wavelength, max_samples,
-                                    seed=seed, stratified=stratified)
+                                    seed=seed, stratified=stratified, surface=surface)
     _require_resolved_roughness(scene, plan.facet_edge_m if plan.facets else plan.spacing_m)
     samples = samples.to(device or "cpu")
     c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
