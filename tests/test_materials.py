@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from rfsdf.materials import (
-    Material, brewster_angle, estimate_permittivity, fresnel, fresnel_of_cosine, get_material, mixture_fresnel,
-    reflectance,
+    Material, brewster_angle, class_permittivities, estimate_permittivity, fresnel, fresnel_of_cosine, get_material,
+    mixture_fresnel, reflectance,
 )
 
 
@@ -119,3 +119,13 @@ def test_a_mixture_of_classes_reflects_the_expected_coefficient():
     torch.testing.assert_close(mixed, 0.5 * (fresnel_of_cosine(cos, eps[0], "mean") + fresnel_of_cosine(cos, eps[1], "mean")))
     mixed.real.sum().backward()
     torch.testing.assert_close(even.grad[:, 1], fresnel_of_cosine(cos, eps[1], "mean").real)
+
+
+def test_the_mixture_of_a_metal_has_finite_gradients_at_grazing_incidence():
+    """A facet turned edge-on to the radar (cos = 0, e.g. a box's side seen along an axis):
+    the PEC's constant must not carry the dielectric formula's 0 / 0 into the gradient."""
+    eps = class_permittivities(("metal", "glass"), 79e9)
+    cos = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, requires_grad=True)
+    probabilities = torch.tensor([[1.0, 0.0], [0.5, 0.5], [1.0, 0.0]], dtype=torch.float64, requires_grad=True)
+    mixture_fresnel(cos, probabilities, eps).abs().sum().backward()
+    assert torch.isfinite(cos.grad).all() and torch.isfinite(probabilities.grad).all()

@@ -190,8 +190,10 @@ def fresnel_of_cosine(cos_inc, eps, polarization: str = "TE") -> torch.Tensor:
         te, tm = fresnel_of_cosine(cos_t, eps, "TE"), fresnel_of_cosine(cos_t, eps, "TM")
         amplitude = torch.sqrt((te.abs() ** 2 + tm.abs() ** 2) / 2)
         return amplitude * torch.sgn(te)
-    cos_c = cos_t.to(torch.complex128)
     pec = torch.isinf(eps.real)
+    # the PEC's constant is taken below; its own branch gets a harmless cosine (at grazing
+    # incidence the dielectric formula with eps = 1 is 0 / 0, whose NaN the gradient would carry)
+    cos_c = torch.where(pec, torch.ones_like(cos_t), cos_t).to(torch.complex128)
     eps_safe = torch.where(pec, torch.ones_like(eps), eps)
     root = torch.sqrt(eps_safe - 1 + cos_c**2)  # sqrt(eps - sin^2 t), principal branch: Im <= 0, decaying
     if polarization == "TE":
