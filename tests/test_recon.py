@@ -21,6 +21,7 @@ from rfsdf.recon import (
     CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss, load_field, project_to_surface,
     surface_candidates,
 )
+from rfsdf.recon.losses import complex_loss
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
 from rfsdf.recon.warm_start import detection_target, fit_to_image
 from rfsdf.scene import Scene, load_scene
@@ -135,26 +136,48 @@ def _two_balls(wood: str = "wood") -> Scene:
                                            "objects": [ball("metal_ball", "metal", -0.025), ball("wood_ball", wood, 0.025)]}))
 
 
-def test_renderer_on_the_true_samples_reproduces_the_simulator(tiny_radar):
-    """The simulator's own samples (stratified, its default) through the renderer's material
-    path, each sample certain of its object's material: the simulator's data to round-off."""
+@pytest.mark.parametrize("surface", ["facets", "points"])
+def test_renderer_on_the_true_samples_reproduces_the_simulator(tiny_radar, surface):
+    """The simulator's own samples (its facets, or its stratified points) through the
+    renderer's material path, each sample certain of its object's material: the simulator's
+    data to round-off."""
     scene = _two_balls()
     radar = dataclasses.replace(tiny_radar, snr_db=None)
-    clean = simulate(scene, radar, seed=3)
+    clean = simulate(scene, radar, seed=3, surface=surface)
     renderer = CoherentRenderer(clean, _grid(8))
     acq = clean.acquisition
-    samples = scene.sample_surface(acq.wavelength_m / SAMPLES_PER_WAVELENGTH, seed=3, max_samples=150_000,
-                                   stratified=True)  # simulate's
+    spacing = acq.wavelength_m / SAMPLES_PER_WAVELENGTH
+    samples = (scene.zero_set_facets(spacing, seed=3) if surface == "facets" else
+               scene.sample_surface(spacing, seed=3, max_samples=150_000, stratified=True))  # simulate's
     classes = renderer.class_permittivities(("metal", "wood"))
     certain = torch.nn.functional.one_hot(samples.object_index, 2).double()  # object i is class i
     for view in range(acq.shape[0]):
         lit = lit_mask(samples.points, samples.normals, renderer.tx_centres[view], renderer.rx_centres[view],
                        occluder=scene.sdf)
         p, n, a = samples.points[lit], samples.normals[lit], samples.area_m2[lit]
+        corners = None if samples.corners_m is None else samples.corners_m[lit]
         y = renderer.predict_data(view, p.double(), n.double(), a.double(),
-                                  lambda cos, lit=lit: mixture_fresnel(cos, certain[lit], classes))
+                                  lambda cos, lit=lit: mixture_fresnel(cos, certain[lit], classes), corners)
         reference = clean.data[view]
         assert float((y[0] - reference).norm() / reference.norm()) < 1e-5
+
+
+def test_the_renderers_facets_of_the_true_surface_give_the_data(sphere_data):
+    """One physics, converged: the renderer's own facets of the true ball (marching cubes on
+    its image grid's crossing voxels, another mesh than the simulator's) predict the
+    simulator's images to a correlation of 0.999 in every view; its points (lambda/3) do not."""
+    _, data = sphere_data
+    truth = _Ball(RADIUS)
+    correlation = {}
+    for surface in ("facets", "points"):
+        renderer = CoherentRenderer(data, _grid(), surface=surface)
+        with torch.no_grad():
+            renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            predicted = renderer(truth, torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0]))
+        observed = renderer.observed
+        correlation[surface] = ((predicted.conj() * observed).sum(1).abs()
+                                / (predicted.norm(dim=1) * observed.norm(dim=1))).min()
+    assert correlation["facets"] > 0.999 > correlation["points"], correlation
 
 
 def test_the_material_path_of_a_metal_surface_is_the_free_path_at_reflectivity_one(sphere_data):
@@ -229,7 +252,8 @@ def _config(**train) -> ReconConfig:
 def _mean_radius(field, renderer) -> float:
     with torch.no_grad():
         renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(5))
-        return float(project_to_surface(field.sdf, renderer.candidates)[0].norm(dim=1).mean())
+        points, _, area, _ = renderer.surface_geometry(field)
+        return float((points.norm(dim=1) * area).sum() / area.sum())
 
 
 def _tiny_trainer(data, seed: int, folder) -> Trainer:
@@ -509,6 +533,34 @@ def test_non_finite_loss_stops_with_a_clear_error_and_keeps_the_checkpoint(spher
 def test_unknown_names_are_refused_with_the_known_ones(table, key, name):
     with pytest.raises(Exception, match=f"unknown .*'{name}'; known: "):
         ReconConfig.model_validate({table: {key: name}})
+
+
+def test_a_continuation_names_its_losses_in_order_and_refuses_others():
+    stages = {"loss": {"stages": [{"data": "amplitude", "until": 0.4}, {"data": "complex", "until": 1.0}]}}
+    loss = ReconConfig.model_validate(stages).loss
+    assert [loss.stage_at(f) for f in (0.0, 0.39, 0.4, 0.99, 1.0)] == ["amplitude"] * 2 + ["complex"] * 3
+    assert ReconConfig().loss.stage_at(0.5) == "amplitude"  # no stages: loss.data throughout
+    with pytest.raises(Exception, match="unknown data loss 'phase'; known: "):
+        ReconConfig.model_validate({"loss": {"stages": [{"data": "phase", "until": 1.0}]}})
+    for until in ([0.6, 0.4, 1.0], [0.5, 0.9]):
+        with pytest.raises(Exception, match="each stage must end after the one before and the last at 1"):
+            ReconConfig.model_validate({"loss": {"stages": [{"data": "amplitude", "until": u} for u in until]}})
+    for until in (0.0, 1.5):
+        with pytest.raises(Exception, match="until"):
+            ReconConfig.model_validate({"loss": {"stages": [{"data": "amplitude", "until": until}]}})
+
+
+def test_the_complex_loss_forgives_each_views_phase_and_gain_but_not_a_phase_error():
+    g = torch.Generator().manual_seed(0)
+    predicted = torch.randn(3, 40, dtype=torch.complex128, generator=g)
+    turns = torch.exp(1j * torch.tensor([0.3, -2.0, 1.1], dtype=torch.float64))[:, None]
+    assert float(complex_loss(predicted, 2.5 * turns * predicted)) < 1e-20
+    assert float(complex_loss(predicted, turns * predicted, fit_gain=False)) < 1e-20
+    assert float(complex_loss(predicted, 2.5 * turns * predicted, fit_gain=False)) > 0.3  # a known gain is held
+    moved = predicted * torch.exp(1j * torch.linspace(0, 1.0, 40, dtype=torch.float64))  # one glint's phase, not all
+    assert float(complex_loss(predicted, moved)) > 0.01 > float(amplitude_loss(predicted, moved))
+    observed = 2.5 * turns * moved
+    assert torch.autograd.gradcheck(lambda p: complex_loss(p, observed), (predicted.clone().requires_grad_(True),))
 
 
 def test_detection_threshold_auto_is_the_clean_residual_floor_and_numbers_pass_through():

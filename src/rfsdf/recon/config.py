@@ -94,7 +94,10 @@ class InitConfig(StrictModel):
 class RenderConfig(StrictModel):
     renderer: str = "coherent"
     element_step: PositiveInt = 2  # image data and prediction with every n-th Tx and Rx (n^2 fewer pairs)
-    spacing_m: PositiveFloat | None = None  # surface sample spacing; default lambda / 3
+    # facets: flat triangles of f = 0 with their phase integrated (the converged quadrature, as
+    # the simulator's); points: random points near it (a Monte Carlo quadrature, for comparison)
+    surface: Literal["facets", "points"] = "facets"
+    spacing_m: PositiveFloat | None = None  # the facets' marching-cubes cell or the points' spacing; default lambda / 3
     shadows: bool = True
     refresh_every: PositiveInt = 10  # steps between new surface samples (and facing/shadow masks)
     smoothing_m: NonNegativeFloat = 0.006  # local mean of the surface velocity over this radius [m]
@@ -108,8 +111,26 @@ class RenderConfig(StrictModel):
         return name
 
 
+class LossStage(StrictModel):
+    """One stage of a continuation: the data loss ``data`` until the share ``until`` of the steps."""
+
+    data: str
+    until: float = Field(gt=0, le=1, description="share of the steps at which this stage ends")
+
+    @field_validator("data")
+    @classmethod
+    def _known_loss(cls, name: str) -> str:
+        from .losses import DATA_LOSSES
+
+        DATA_LOSSES.get(name)
+        return name
+
+
 class LossConfig(StrictModel):
-    data: str = "amplitude"
+    data: str = "amplitude"  # the data loss of every step, when no stages are given
+    # a continuation: data losses in turn, each until its share of the steps (the last until
+    # 1), e.g. amplitude while the surface is too far for the phase, then "complex" (recon/losses.py)
+    stages: list[LossStage] = []
     eikonal_weight: NonNegativeFloat = 0.01
     # mean entropy of the material probabilities on the surface: favours decisive classes
     material_entropy_weight: NonNegativeFloat = 0.01
@@ -123,6 +144,19 @@ class LossConfig(StrictModel):
 
         DATA_LOSSES.get(name)
         return name
+
+    @field_validator("stages")
+    @classmethod
+    def _a_schedule(cls, stages: list[LossStage]) -> list[LossStage]:
+        ends = [stage.until for stage in stages]
+        if stages and (any(b <= a for a, b in zip(ends, ends[1:])) or ends[-1] != 1):
+            raise ValueError(f"each stage must end after the one before and the last at 1, got until = {ends}")
+        return stages
+
+    def stage_at(self, fraction: float) -> str:
+        """The data loss at ``fraction`` (0 to 1) of the steps."""
+        return next((stage.data for stage in self.stages if fraction < stage.until), self.stages[-1].data) \
+            if self.stages else self.data
 
 
 class SamplingConfig(StrictModel):

@@ -1,12 +1,19 @@
 """Losses: data fidelity between predicted and observed MF images, and the Eikonal term.
 
-Data losses take the predicted complex per-view images (v, X) and the observed amplitudes
-(v, X) at the same voxels, and are registered by name in ``DATA_LOSSES``. Radar data carry
-no absolute calibration unless the radar gain is known, so a data loss first scales the
-prediction by the least-squares gain (held constant for the gradient, one gain for all views
-of the step: relative brightness between views is physics, not calibration), and is
-normalised by the observed energy, so 0 is a perfect fit and 1 is a prediction orthogonal to
-the data. With a known gain (``fit_gain=False``) the prediction is compared as it is.
+Data losses take the predicted complex per-view images (v, X) and the observed images (v, X)
+at the same voxels (complex, or amplitudes where only amplitudes are compared), and are
+registered by name in ``DATA_LOSSES``. Radar data carry no absolute calibration unless the
+radar gain is known, so a data loss first scales the prediction by the least-squares gain
+(held constant for the gradient, one gain for all views of the step: relative brightness
+between views is physics, not calibration), and is normalised by the observed energy, so 0
+is a perfect fit and 1 is a prediction orthogonal to the data. With a known gain
+(``fit_gain=False``) the prediction is compared as it is. A loss that compares phases
+(``uses_phase``) is compared voxel by voxel, never pooled over cells (``recon/sampling.py``).
+
+Amplitude locates a glint to a fraction of the range resolution c / 2B (37.5 mm at 4 GHz);
+the carrier phase locates it to a fraction of lambda / 2 (1.9 mm at 79 GHz) but repeats
+every lambda / 2, so a fit reaches it by continuation (``LossConfig.stages``): amplitude
+while the surface is more than about lambda / 4 off, then phase.
 """
 
 from __future__ import annotations
@@ -16,8 +23,8 @@ import torch
 from ..geometry import gradient
 from ..registry import Registry
 
-__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "material_entropy", "material_cross_entropy", "eikonal_loss",
-           "eikonal_penalty"]
+__all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "complex_loss", "uses_phase", "material_entropy",
+           "material_cross_entropy", "eikonal_loss", "eikonal_penalty"]
 
 DATA_LOSSES: Registry = Registry("data loss")
 
@@ -33,19 +40,47 @@ def _misfit(predicted: torch.Tensor, observed: torch.Tensor, fit_gain: bool) -> 
 
 
 @DATA_LOSSES.register("amplitude")
-def amplitude_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def amplitude_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
     """Misfit of MF *amplitudes* |c_hat|: where the glints are and how bright, not the
     carrier phase of each (an absolute phase is not a geometric fact worth fitting).
     With the fitted gain it equals 1 - cos^2 between the amplitude images; ``fit_gain=False``
     when the radar gain is known (the prediction is in the data's units), so that absolute
     brightness, and with it each material's |Gamma|, is data too."""
-    return _misfit(predicted.abs(), observed_amplitude, fit_gain)
+    return _misfit(predicted.abs(), observed.abs(), fit_gain)
 
 
 @DATA_LOSSES.register("power")
-def power_loss(predicted: torch.Tensor, observed_amplitude: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def power_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
     """Misfit of MF power |c_hat|^2: weights the brightest glints more than ``amplitude``."""
-    return _misfit(predicted.abs() ** 2, observed_amplitude**2, fit_gain)
+    return _misfit(predicted.abs() ** 2, observed.abs() ** 2, fit_gain)
+
+
+@DATA_LOSSES.register("complex")
+def complex_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+    """Misfit of the complex MF images (v, X): sum |g e^{j phi_v} p - o|^2 / sum |o|^2, each
+    view's prediction turned by the phase phi_v = arg <p_v, o_v> that best aligns it with the
+    data (an unknown absolute phase per view, a range offset of the radar's: not a geometric
+    fact to fit) and scaled by one gain g = sum_v |<p_v, o_v>| / sum |p|^2 for all views (1
+    with ``fit_gain=False``), both in closed form and held for the gradient (at the optimum
+    the loss does not change with them). It sees the carrier phase of every glint relative
+    to the others: a smooth 0.25 mm error of the demo's surface raises it as much as a 1 mm
+    error raises the amplitude loss; beyond about lambda / 4 its gradient points a cycle the
+    wrong way (``benchmarks/basin.py``)."""
+    with torch.no_grad():
+        tiny = torch.finfo(predicted.real.dtype).tiny
+        inner = (predicted.conj() * observed).sum(1)  # (v,)
+        turn = inner / inner.abs().clamp(min=tiny)
+        gain = inner.abs().sum() / (predicted.abs() ** 2).sum().clamp(min=tiny) if fit_gain else 1.0
+    residual = gain * turn[:, None] * predicted - observed
+    return (residual.abs() ** 2).sum() / (observed.abs() ** 2).sum().clamp(min=tiny)
+
+
+complex_loss.uses_phase = True
+
+
+def uses_phase(loss) -> bool:
+    """Whether a data loss compares phases (complex images voxel by voxel, never pooled)."""
+    return getattr(loss, "uses_phase", False)
 
 
 def material_entropy(probabilities: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:

@@ -35,17 +35,23 @@ still correlates 0.92 with the data, white per-sample jitter of lambda/4 only 0.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import torch
 
 from ..geometry import Grid, interpolated_sdf
 from ..materials import class_permittivities, mixture_fresnel
 from ..progress import progress_bar
-from ..radar import Measurements, SensingOperator
+from ..radar import SPEED_OF_LIGHT, Measurements, SensingOperator
+from ..radar.facets import facet_phase_weights
 from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, po_spectrum, scatter
 from ..registry import Registry
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
+from .surface_mesh import SurfaceMesh, mesh_facets, surface_mesh
+
+SURFACES = ("facets", "points")
 
 __all__ = ["RENDERERS", "CoherentRenderer"]
 
@@ -59,15 +65,22 @@ class CoherentRenderer:
     measurements : the data. grid : the image grid (data voxels are its voxel centres).
     element_step : image with every n-th Tx and Rx only (both the data and the prediction,
     so they stay comparable): the same aperture and resolution, n^2 times fewer pairs.
-    spacing_m : the surface sampling step (lambda/3 by default). shadows : trace them.
+    surface : "facets", flat triangles of f = 0 whose phase is integrated across them
+    (``recon/surface_mesh.py``: the converged quadrature, as the simulator's), or "points",
+    random points near it (``recon/surface.py``: a Monte Carlo quadrature, kept for comparison).
+    spacing_m : the facets' marching-cubes cell, or the points' spacing (lambda/3 by default). shadows : trace them.
     dtype : float32, or float64 for gradient checks. smoothing_m : radius of the local mean
-    taken of the surface velocity the loss asks for (``surface.project_to_surface``).
+    taken of the surface velocity the loss asks for (``surface.smoothed_velocity``).
     """
 
     def __init__(self, measurements: Measurements, grid: Grid, *, element_step: int = 1,
-                 spacing_m: float | None = None, specular_exponent: float = SPECULAR_EXPONENT,
-                 diffuse_weight: float = DIFFUSE_WEIGHT, shadows: bool = True, device="cpu",
-                 dtype: torch.dtype = torch.float32, smoothing_m: float = 0.0, progress: bool = False):
+                 surface: str = "facets", spacing_m: float | None = None,
+                 specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT,
+                 shadows: bool = True, device="cpu", dtype: torch.dtype = torch.float32, smoothing_m: float = 0.0,
+                 progress: bool = False):
+        if surface not in SURFACES:
+            raise ValueError(f"unknown surface {surface!r}; known: {', '.join(SURFACES)}")
+        self.surface = surface
         self.grid, self.device = grid, torch.device(device)
         data = measurements.thinned(element_step)
         acq = data.acquisition
@@ -91,7 +104,8 @@ class CoherentRenderer:
         self.centre_frequency_hz = acq.center_frequency_hz
         self.wavenumber_rad_m = acq.wavenumber_rad_m
         self.po_spectrum = po_spectrum(acq.frequencies_hz).to(self.device)  # (K,), the data's last axis
-        self.candidates: SurfaceCandidates | None = None
+        self.wavenumbers_rad_m = (2 * np.pi / SPEED_OF_LIGHT) * acq.frequencies_hz.double().to(self.device)  # (K,)
+        self.candidates: SurfaceCandidates | SurfaceMesh | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
 
@@ -110,7 +124,10 @@ class CoherentRenderer:
 
         voxel_values_m : (N,) f at the grid's voxel centres (no gradient)."""
         values = voxel_values_m.to(self.device)
-        self.candidates = surface_candidates(sdf, self.voxels, values, self.voxel_m, self.spacing_m, generator)
+        if self.surface == "facets":
+            self.candidates = surface_mesh(sdf, self.voxels, values, self.voxel_m, self.spacing_m)
+        else:
+            self.candidates = surface_candidates(sdf, self.voxels, values, self.voxel_m, self.spacing_m, generator)
         self._features = None
         occluder = interpolated_sdf(values, self.grid) if self.shadows else None
         anchors, normals = self.candidates.anchors, self.candidates.normals
@@ -120,13 +137,37 @@ class CoherentRenderer:
             for v in range(self.num_views)
         ])
 
+    def surface_state(self) -> dict | None:
+        """The surface as a checkpoint keeps it (tensors and numbers), with its masks; None
+        before the first refresh."""
+        cand = self.candidates
+        if cand is None:
+            return None
+        kept = cand.state() if isinstance(cand, SurfaceMesh) else dataclasses.asdict(cand)
+        return {"kind": self.surface, **kept, "lit": self.lit}
+
+    def load_surface_state(self, state: dict | None) -> None:
+        """The surface and masks :meth:`surface_state` kept (None: none yet)."""
+        if state is None:
+            return
+        state = dict(state)
+        kind, self.lit = state.pop("kind"), state.pop("lit")
+        if kind != self.surface:
+            raise ValueError(f"the checkpoint's surface is {kind}, this renderer's {self.surface}")
+        self.candidates = SurfaceMesh.from_state(state) if kind == "facets" else SurfaceCandidates(**state)
+        self._features = None
+
     def predict_data(self, view: int, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor,
-                     reflection) -> torch.Tensor:
+                     reflection, corners_m: torch.Tensor | None = None) -> torch.Tensor:
         """y_v = A_v c_v (1, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
-        c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there). The
-        simulator's data, for the simulator's samples and their Fresnel reflection."""
-        c = scatter(points, normals, area_m2, reflection, self.tx_centres[view], self.rx_centres[view],
-                    self.wavenumber_rad_m, **self.lobe)
+        c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there), and for
+        facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
+        the phase integral across each at each frequency. The simulator's data, for the
+        simulator's samples and their Fresnel reflection."""
+        tx, rx = self.tx_centres[view], self.rx_centres[view]
+        c = scatter(points, normals, area_m2, reflection, tx, rx, self.wavenumber_rad_m, **self.lobe)
+        if corners_m is not None:
+            c = c[None] * facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)  # (K, Q)
         return self.operators[view].forward(points, c[None]) * self.po_spectrum.to(c.dtype)
 
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
@@ -148,6 +189,19 @@ class CoherentRenderer:
                 self._features = field.material_features(self.candidates.anchors)
         return field.material_head(self._features)
 
+    def surface_geometry(self, field, *, geometry: bool = True):
+        """The surface as the renderer sums it: points (Q, 3) [m] (the facets' centroids),
+        unit normals (Q, 3), areas (Q,) [m^2] and the facets' corners (Q, 3, 3) [m] relative to
+        them (None for points); on f as it is (differentiable when gradients are recorded), or,
+        ``geometry=False``, as it was at the last refresh."""
+        cand = self.candidates
+        if self.surface == "facets":
+            facets = mesh_facets(field.sdf, cand, smoothing_m=self.smoothing_m) if geometry else cand.facets
+            return facets.centroids, facets.normals, facets.area_m2, facets.corners_m
+        if geometry:
+            return (*project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m), None)
+        return (*cand.projected(), None)
+
     def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True,
                  probabilities: torch.Tensor | None = None) -> torch.Tensor:
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
@@ -156,15 +210,11 @@ class CoherentRenderer:
         :meth:`surface_materials`, when the caller has them already."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
-        cand = self.candidates
-        if geometry:
-            points, normals, area = project_to_surface(field.sdf, cand, smoothing_m=self.smoothing_m)
-        else:
-            points, normals, area = cand.projected()
+        points, normals, area, corners = self.surface_geometry(field, geometry=geometry)
         if probabilities is None:
             probabilities = self.surface_materials(field)
         if probabilities is None:
-            amplitude = field.reflectivity(cand.anchors)
+            amplitude = field.reflectivity(self.candidates.anchors)
         else:
             eps = self.class_permittivities(field.materials)
             complex_dtype = torch.promote_types(points.dtype, torch.complex64)
@@ -184,6 +234,7 @@ class CoherentRenderer:
                 images.append(torch.zeros(len(voxel_index), dtype=torch.promote_types(points.dtype, torch.complex64),
                                           device=self.device))
                 continue
-            y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx))
+            y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
+                                  None if corners is None else corners[idx])
             images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

@@ -48,7 +48,7 @@ import torch
 
 from ..geometry import gradient_and_curvature
 
-__all__ = ["SurfaceCandidates", "surface_candidates", "project_to_surface", "cells_per_voxel"]
+__all__ = ["SurfaceCandidates", "surface_candidates", "project_to_surface", "smoothed_velocity", "cells_per_voxel"]
 
 _EVAL_CHUNK = 1 << 16  # points per SDF call while searching candidates
 _CROSSING_MARGIN = 1.0  # a voxel can hold surface when |f(centre)| < margin * voxel (sqrt(3)/2 exact)
@@ -145,11 +145,17 @@ def project_to_surface(sdf: Callable[[torch.Tensor], torch.Tensor], candidates: 
     normals = torch.nn.functional.normalize(grad, dim=1)
     if not recording:
         values, normals = values.detach(), normals.detach()
-    if smoothing_m > 0:
-        values = _SmoothedGradient.apply(values, candidates.anchors, smoothing_m)
+    values = smoothed_velocity(values, candidates.anchors, smoothing_m)
     moved = -(values - candidates.values) / g.norm(dim=1).clamp(min=1e-6)
     area = candidates.area_m2 * (1 + candidates.curvature * moved).clamp(min=0)
     return _newton_step(candidates.anchors, values, g), normals, area
+
+
+def smoothed_velocity(values: torch.Tensor, points: torch.Tensor, smoothing_m: float) -> torch.Tensor:
+    """``values`` (Q,) f at surface points (Q, 3) [m], whose gradient (the normal velocity the
+    loss asks for at each point) is replaced by its Gaussian-weighted local mean over
+    ``smoothing_m`` [m] (0: left as it is): a Sobolev-type gradient (:func:`project_to_surface`)."""
+    return _SmoothedGradient.apply(values, points, smoothing_m) if smoothing_m > 0 else values
 
 
 def _newton_step(anchors: torch.Tensor, values: torch.Tensor, gradients: torch.Tensor) -> torch.Tensor:

@@ -33,11 +33,10 @@ from ..radar.clean import CleanResult, clean_image
 from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import DATA_LOSSES, eikonal_loss, material_cross_entropy, material_entropy
+from .losses import DATA_LOSSES, eikonal_loss, material_cross_entropy, material_entropy, uses_phase
 from .render import RENDERERS
 from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
-from .surface import SurfaceCandidates
 from .warm_start import detection_threshold, excluded_voxels, warm_start
 
 __all__ = ["Problem", "StepRecord", "FitResult", "Trainer"]
@@ -125,9 +124,12 @@ def _resumable(config: dict) -> dict:
 class Trainer:
     """Fits a :class:`RadarField` to a :class:`Problem`; checkpoints go to ``run_dir``."""
 
-    def __init__(self, problem: Problem, config: ReconConfig, run_dir, *, progress: bool = False):
+    def __init__(self, problem: Problem, config: ReconConfig, run_dir, *, start: dict | None = None,
+                 progress: bool = False):
+        """``start``: a state of the field (``RadarField.state_dict``) to fit from instead of
+        the warm start (a study's chosen surface)."""
         self.problem, self.config, self.run_dir = problem, config, Path(run_dir)
-        self.progress = progress
+        self.progress, self.start = progress, start
         self.device = resolve_device(config.train.device, "train.device")
         self.field_kwargs = _field_kwargs(problem.grid, config)
         with torch.random.fork_rng():
@@ -146,9 +148,9 @@ class Trainer:
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = RENDERERS.get(rc.renderer)(
-            problem.measurements, problem.grid, element_step=rc.element_step, spacing_m=rc.spacing_m,
+            problem.measurements, problem.grid, element_step=rc.element_step, surface=rc.surface,
+            spacing_m=rc.spacing_m,
             shadows=rc.shadows, device=self.device, smoothing_m=rc.smoothing_m, progress=progress)
-        self.data_loss = DATA_LOSSES.get(config.loss.data)
         self.observed = self.renderer.observed.abs()  # (V, N) amplitude, peak 1
         self.probabilities = data_voxel_probabilities(self.observed, config.sampling.data_focus)
         self.step = 0
@@ -161,15 +163,10 @@ class Trainer:
         return self.run_dir / CHECKPOINT_NAME
 
     def save(self) -> None:
-        cand = self.renderer.candidates
-        surface = None if cand is None else {"anchors": cand.anchors, "gradients": cand.gradients,
-                                             "area_m2": cand.area_m2, "spacing_m": cand.spacing_m,
-                                             "curvature": cand.curvature, "values": cand.values,
-                                             "lit": self.renderer.lit}
         save_checkpoint(self.run_dir, {
             "step": self.step, "field": self.field.state_dict(), "field_kwargs": self.field_kwargs,
             "optimizer": self.optimizer.state_dict(), "scheduler": self.scheduler.state_dict(),
-            "generator": self.generator.get_state(), "surface": surface,
+            "generator": self.generator.get_state(), "surface": self.renderer.surface_state(),
             "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
             "data_digest": self.problem.digest(), "data_source": self.problem.source, "gain": self.problem.gain,
         })
@@ -189,12 +186,7 @@ class Trainer:
             self.optimizer.load_state_dict(state["optimizer"])
             self.scheduler.load_state_dict(state["scheduler"])
             self.generator.set_state(state["generator"])
-            surface = state["surface"]
-            if surface is not None:
-                self.renderer.candidates = SurfaceCandidates(surface["anchors"], surface["gradients"],
-                                                             surface["area_m2"], surface["spacing_m"],
-                                                             surface["curvature"], surface["values"])
-                self.renderer.lit = surface["lit"]
+            self.renderer.load_surface_state(state["surface"])
             self.step = state["step"]
             self.log = [StepRecord(**row) for row in state["log"]]
             self.warm_state = state["warm_field"]
@@ -271,13 +263,14 @@ class Trainer:
         frozen = self.step < cfg.train.geometry_delay_steps
         probabilities = self.surface_materials(geometry=not frozen)
         predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities)
-        observed = self.observed[views][:, voxels]
+        data_loss = DATA_LOSSES.get(cfg.loss.stage_at(self.step / cfg.train.steps))
+        observed = self.renderer.observed[views][:, voxels]
         known_gain = self.problem.gain is not None and probabilities is not None
         if known_gain:  # into the units of the observed images (peak 1)
             predicted = predicted * (self.problem.gain / self.renderer.observed_peak)
-        if size > 1:
+        if size > 1 and not uses_phase(data_loss):
             predicted, observed = pooled_amplitude(predicted, cells), pooled_amplitude(observed, cells)
-        data = self.data_loss(predicted, observed, fit_gain=not known_gain)
+        data = data_loss(predicted, observed, fit_gain=not known_gain)
         terms = {"data": data}
         if probabilities is not None:
             terms["material"] = cfg.loss.material_entropy_weight * material_entropy(
@@ -308,7 +301,10 @@ class Trainer:
         else:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             write_config(self.run_dir, self.config)
-            self.warm_start()
+            if self.start is None:
+                self.warm_start()
+            else:
+                self.field.load_state_dict(self.start)
             self.warm_state = {k: v.detach().clone() for k, v in self.field.state_dict().items()}
             self.save()  # a run killed from here on resumes after the warm start
         bar = progress_bar(total=tc.steps, initial=self.step, desc="fit", enabled=self.progress, leave=True)
