@@ -111,7 +111,7 @@ def test_as_many_points_as_facets_turn_the_wall_into_speckle():
     facets = simulate(scene, _monostatic(frequencies), max_samples=300_000)
     count = int(facets.metadata["surface_sampling"].split()[0])
     spacing = math.sqrt(4.0 / count)  # over the 2 x 2 m face in view
-    points = simulate(scene, _monostatic(frequencies), spacing_m=spacing, max_samples=10**7)
+    points = simulate(scene, _monostatic(frequencies), spacing_m=spacing, max_samples=10**7, surface="points")
     assert "points" in points.metadata["surface_sampling"]
     error = np.abs(np.abs(points.data[0, 0, 0].numpy()) * 2 * d - 1).max()
     assert error > 0.1, error

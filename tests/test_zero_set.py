@@ -13,7 +13,8 @@ from rfsdf.geometry import (
 )
 from rfsdf.mesh import extract_mesh_near_surface, mesh_blocks
 from rfsdf.radar import load_radar, simulate
-from rfsdf.scene import load_scene
+from rfsdf.scene import Scene
+from rfsdf.scene_spec import SceneSpec
 from rfsdf.studies.ball_fit import small_radar
 
 RADIUS = 0.02
@@ -95,30 +96,23 @@ def test_blocks_on_one_lattice_keep_a_face_that_lies_on_their_boundary():
             assert mesh.area_faces[flat].sum() == pytest.approx(0.02**2, rel=0.01)
 
 
-SCENE = """
-name = "block-and-ball"
-[bounds]
-lower_m = [-0.06, -0.06, -0.06]
-upper_m = [0.06, 0.06, 0.06]
-[[objects]]
-name = "block"
-material = "wood"
-shape = { type = "box", half_extents_m = [0.03, 0.02, 0.015], center_m = [-0.02, 0.0, 0.0] }
-[[objects]]
-name = "ball"
-material = "metal"
-shape = { type = "sphere", radius_m = 0.015, center_m = [0.03, 0.025, 0.0] }
-"""
+def _block_and_ball() -> Scene:
+    """A wooden block (creases) and a metal ball beside it."""
+    objects = [{"name": "block", "material": "wood",
+                "shape": {"type": "box", "half_extents_m": [0.03, 0.02, 0.015], "center_m": [-0.02, 0.0, 0.0]}},
+               {"name": "ball", "material": "metal",
+                "shape": {"type": "sphere", "radius_m": 0.015, "center_m": [0.03, 0.025, 0.0]}}]
+    return Scene(SceneSpec.model_validate({"name": "block-and-ball", "objects": objects,
+                                           "bounds": {"lower_m": [-0.06] * 3, "upper_m": [0.06] * 3}}))
 
 
 @pytest.mark.parametrize("surface,agree", [("facets", True), ("points", False)])
-def test_two_discretisations_of_a_scene_give_the_same_data(tmp_path, surface, agree):
+def test_two_discretisations_of_a_scene_give_the_same_data(surface, agree):
     """The converged quadrature: a wooden block (creases) and a metal ball seen from six views,
     noise-free, simulated on facets of two meshes (another grid offset and another cell): the
     data agree per view to a correlation of 0.999 and within 1 % in amplitude. Points of two
     seeds (lambda/3, stratified) do not (0.78-0.93 on the demo scene)."""
-    (tmp_path / "scene.toml").write_text(SCENE)
-    scene = load_scene(tmp_path / "scene.toml")
+    scene = _block_and_ball()
     radar = small_radar(snr_db=None, array_m=0.08, elements_per_edge=4, rings=((4, 0.0), (2, 0.6)))
     cells = (1.5e-3, 1.2e-3) if surface == "facets" else (None, None)
     first, second = (simulate(scene, radar, seed=seed, spacing_m=cell, surface=surface).data.flatten(1)

@@ -4,6 +4,7 @@ queue or retry loop of our own: the engines have them."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable, Sequence
@@ -51,7 +52,9 @@ def map_tasks(function: Callable, arguments: Sequence[tuple], *, workers: int = 
         for i, args in enumerate(arguments):
             finished(i, function(*args))
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        # spawned, not forked: a child forked from a process whose numba or OpenMP threads are
+        # running hangs in its first parallel kernel (the facet simulation's did, in a sweep)
+        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
             futures = {pool.submit(function, *args): i for i, args in enumerate(arguments)}
             for future in as_completed(futures):
                 finished(futures[future], future.result())
