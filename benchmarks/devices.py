@@ -10,7 +10,7 @@ Each stage runs once to warm up (CUDA kernels, numba) and is then timed;
 `speedup` is CPU seconds / GPU seconds in the same run. Without a GPU the JSON says so and
 holds the CPU figures only.
 
-Usage: python benchmarks/devices.py [--out benchmarks/results/devices.json]
+Usage: python benchmarks/devices.py [--stages fit_step_s,...] [--out benchmarks/results/devices.json]
 """
 
 from __future__ import annotations
@@ -47,8 +47,11 @@ def _seconds(function, device: torch.device) -> float:
     return round(time.perf_counter() - start, 3)
 
 
-def stage_seconds(device: torch.device) -> dict[str, float]:
-    """Seconds per stage on ``device`` (the demo's scene, radar and grid)."""
+STAGES = ("simulate_s", "matched_filter_s", "clean_one_view_s", "fit_step_s", "sdf_on_128_grid_s", "room_facets_ac_s")
+
+
+def stage_seconds(device: torch.device, stages=STAGES) -> dict[str, float]:
+    """Seconds per stage on ``device`` (the demo's scene, radar and grid), of ``stages``."""
     settings = DemoSettings()
     scene, radar = load_scene(settings.scene), load_radar(settings.radar)
     measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples)
@@ -60,19 +63,21 @@ def stage_seconds(device: torch.device) -> dict[str, float]:
         with tempfile.TemporaryDirectory() as folder:
             return Trainer(Problem(measurements, grid), config, folder).fit()
 
-    fit()  # warm-up
-    fitted = fit()
     extent = max(u - lo for lo, u in zip(scene.lower_m, scene.upper_m))
     mesh_grid = Grid.from_voxel(scene.lower_m, scene.upper_m, float(extent) / 128)  # the demo's mesh resolution
-    return {
-        "simulate_s": _seconds(lambda: simulate(scene, radar, seed=settings.seed, device=device,
-                                                max_samples=settings.max_surface_samples), device),
-        "matched_filter_s": _seconds(lambda: matched_filter(measurements, grid, method="exact", device=device), device),
-        "clean_one_view_s": _seconds(lambda: clean_view(measurements, 0, grid, method="exact", device=device), device),
-        "fit_step_s": round(fitted.seconds_per_step, 3),
-        "sdf_on_128_grid_s": _seconds(lambda: evaluate_on_grid(fitted.field.sdf, mesh_grid, device=device), device),
-        "room_facets_ac_s": _seconds(_room_facets_ac(device), device),
+    timed = {
+        "simulate_s": lambda: _seconds(lambda: simulate(scene, radar, seed=settings.seed, device=device,
+                                                        max_samples=settings.max_surface_samples), device),
+        "matched_filter_s": lambda: _seconds(lambda: matched_filter(measurements, grid, method="exact", device=device),
+                                             device),
+        "clean_one_view_s": lambda: _seconds(lambda: clean_view(measurements, 0, grid, method="exact", device=device),
+                                             device),
+        "fit_step_s": lambda: round((fit(), fit())[1].seconds_per_step, 3),  # the first warms up
+        "sdf_on_128_grid_s": lambda: _seconds(lambda: evaluate_on_grid(fit().field.sdf, mesh_grid, device=device),
+                                              device),
+        "room_facets_ac_s": lambda: _seconds(_room_facets_ac(device), device),
     }
+    return {stage: timed[stage]() for stage in stages}
 
 
 def _room_facets_ac(device: torch.device, facets: int = 100_000):
@@ -86,12 +91,17 @@ def _room_facets_ac(device: torch.device, facets: int = 100_000):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--stages", default=",".join(STAGES), help=f"comma-separated, of {', '.join(STAGES)}")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/devices.json"))
     args = parser.parse_args()
-    result: dict = {"threads": torch.get_num_threads(), "cpu": stage_seconds(torch.device("cpu"))}
+    stages = args.stages.split(",")
+    unknown = set(stages) - set(STAGES)
+    if unknown:
+        parser.error(f"unknown stages {sorted(unknown)}; known: {', '.join(STAGES)}")
+    result: dict = {"threads": torch.get_num_threads(), "cpu": stage_seconds(torch.device("cpu"), stages)}
     if torch.cuda.is_available():
         cuda = resolve_device("cuda")
-        result.update(gpu=torch.cuda.get_device_name(cuda), cuda=stage_seconds(cuda))
+        result.update(gpu=torch.cuda.get_device_name(cuda), cuda=stage_seconds(cuda, stages))
         result["speedup"] = {k: round(result["cpu"][k] / max(v, 1e-9), 1) for k, v in result["cuda"].items()}
     else:
         result.update(gpu=None, cuda=None, note="torch sees no CUDA GPU on this machine: CPU figures only")

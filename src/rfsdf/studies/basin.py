@@ -1,0 +1,230 @@
+"""How far each data loss pulls a surface: the fit's basin, measured on the demo scene.
+
+The start: the true surface displaced along its normals by a smooth random field u (Gaussian,
+20 mm correlation: the shape ``benchmarks/fit_errors.py`` measured on real fits, unit rms on
+the true surface) times sigma, for sigma from 0.25 to 8 mm, i.e. a RadarField regressed onto
+f(p) - sigma u(p). Each loss (or continuation of losses) then fits it to the demo's data from
+the first step, with the radar's gain held and every surface certain of its object's true
+material (``Problem.known_materials``), so that only the geometry is free. Measured: the
+observed-surface Chamfer of each start and of where each loss ends, each loss at each start
+and at the true surface (the floor: the noise and what the forward model cannot reproduce),
+and the metric's own floor (the true SDF meshed as the fits are).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass, field
+from functools import partial
+
+import numpy as np
+import torch
+from scipy import ndimage
+
+from ..device import resolve_device
+from ..field import RadarField
+from ..geometry import Grid, interpolated_sdf
+from ..materials import MATERIAL_CLASSES
+from ..mesh import extract_mesh
+from ..metrics import evaluate_scene
+from ..radar import load_radar, simulate
+from ..radar.coverage import observed_mask
+from ..radar.simulate import SIMULATED_GAIN
+from ..recon import Problem, ReconConfig, Trainer
+from ..recon.losses import DATA_LOSSES
+from ..recon.render import CoherentRenderer
+from ..recon.warm_start import fit_to_image
+from ..scene import load_scene
+from ..viz.figures import plt, save_figure
+from .ball_fit import small_radar
+
+NAME = "basin"
+SUMMARY = "where each data loss ends from the true surface displaced by smooth errors of 0.25-8 mm"
+
+# each fit's data losses: one loss throughout, or a continuation (LossConfig.stages)
+SCHEDULES = {
+    "amplitude": [{"data": "amplitude", "until": 1.0}],
+    "complex": [{"data": "complex", "until": 1.0}],
+    "amplitude-then-complex": [{"data": "amplitude", "until": 0.5}, {"data": "complex", "until": 1.0}],
+}
+_FIELD_STEP_M = 0.002  # the random field's grid
+
+
+@dataclass(frozen=True)
+class Settings:
+    scene: str = "objects"
+    radar: str = "near-77g"  # a preset, or "small" (the tests' six-view toy radar)
+    voxel_m: float = 0.006
+    errors_mm: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+    correlation_m: float = 0.02
+    schedules: tuple[str, ...] = ("amplitude", "complex")
+    steps: int = 30
+    width: int = 128
+    depth: int = 6
+    regress_steps: int = 600
+    element_step: int = 2
+    views_per_step: int = 6
+    data_batch: int = 4096
+    mesh_resolution: int = 128
+    metric_samples: int = 50_000
+    seed: int = 0
+    device: str = "auto"
+
+
+QUICK = Settings(scene="sphere", radar="small", voxel_m=0.0075, errors_mm=(1.0, 4.0),
+                 schedules=("amplitude", "complex"), steps=4, width=32, depth=4, regress_steps=300, element_step=1,
+                 data_batch=1024, mesh_resolution=48, metric_samples=5_000)
+
+
+@dataclass(frozen=True)
+class Result:
+    errors_mm: list[float]  # the displacement's rms on the true surface
+    start_observed_mm: list[float]  # observed-surface Chamfer-L1 of each start
+    end_observed_mm: dict[str, list[float]] = field(default_factory=dict)  # per schedule, per start
+    end_chamfer_mm: dict[str, list[float]] = field(default_factory=dict)  # the whole surface
+    start_loss: dict[str, list[float]] = field(default_factory=dict)  # each data loss at each start
+    truth_loss: dict[str, float] = field(default_factory=dict)  # ... at the true surface
+    truth_observed_mm: float = 0.0  # the true SDF meshed as the fits are: the metric's floor
+    seconds: float = 0.0
+
+
+class _TrueMaterials:
+    """Points -> class index of the nearest object's material (``Problem.known_materials``)."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.classes = [MATERIAL_CLASSES.index(o.material.name) for o in scene.objects]
+
+    def __call__(self, points: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            return torch.tensor(self.classes, device=points.device)[self.scene.object_index(points).to(points.device)]
+
+
+def smooth_displacement(scene, correlation_m: float, generator: torch.Generator):
+    """A Gaussian random field u(points (N, 3)) -> (N,) over the scene's bounds, correlated over
+    ``correlation_m`` [m] (autocorrelation exp(-r^2 / 2 l^2)) and of unit rms on the true
+    surface: white noise on a 2 mm grid, Gaussian-filtered, read trilinearly."""
+    lower, upper = np.asarray(scene.lower_m) - 0.02, np.asarray(scene.upper_m) + 0.02
+    grid = Grid.from_voxel(lower, upper, _FIELD_STEP_M)
+    noise = torch.randn(grid.shape, generator=generator, dtype=torch.float64).numpy()
+    values = ndimage.gaussian_filter(noise, correlation_m / np.sqrt(2) / _FIELD_STEP_M, mode="wrap")
+    field_at = interpolated_sdf(torch.as_tensor(values, dtype=torch.float32).flatten(), grid)
+    surface = scene.sample_surface(0.002, seed=0, max_samples=50_000).points
+    with torch.no_grad():
+        rms = float(field_at(surface).pow(2).mean().sqrt())
+    return lambda points: field_at(points.detach().float().cpu()).to(points) / rms
+
+
+def run(settings: Settings) -> Result:
+    clock = time.perf_counter()
+    device = resolve_device(settings.device, "device")
+    scene = load_scene(settings.scene)
+    radar = small_radar() if settings.radar == "small" else load_radar(settings.radar)
+    data = simulate(scene, radar, seed=settings.seed, device=device)
+    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
+    known = _TrueMaterials(scene)
+    problem = Problem(data, grid, source=f"{settings.scene} ({settings.radar})", gain=SIMULATED_GAIN,
+                      known_materials=known)
+    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
+                    observed=partial(observed_mask, acquisition=data.acquisition, occluder=scene.sdf))
+    mesh = lambda sdf: extract_mesh(sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution,  # noqa: E731
+                                    device=device)
+
+    def config(schedule: str) -> ReconConfig:
+        return ReconConfig.model_validate({
+            "field": {"width": settings.width, "depth": settings.depth},
+            "render": {"element_step": settings.element_step},
+            "loss": {"stages": SCHEDULES[schedule]},
+            "sampling": {"views_per_step": settings.views_per_step, "data_batch": settings.data_batch},
+            "train": {"steps": settings.steps, "checkpoint_every": settings.steps, "geometry_delay": 0.0,
+                      "seed": settings.seed, "device": str(device)}})
+
+    losses = _Losses(problem, config("amplitude"), known)
+    displacement = smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(settings.seed))
+    near = scene.sample_surface(settings.voxel_m / 2, seed=settings.seed, max_samples=50_000).points
+    result = Result(list(settings.errors_mm), [], truth_loss=losses(scene.sdf),
+                    truth_observed_mm=score(mesh(lambda p: scene.sdf(p.double()))).observed.chamfer_l1_mm)
+    for error_mm in settings.errors_mm:
+        target = lambda p, e=error_mm * 1e-3: scene.sdf(p) - e * displacement(p)  # noqa: E731
+        start = regressed_field(problem, config("amplitude"), target, near, steps=settings.regress_steps,
+                                seed=settings.seed)
+        result.start_observed_mm.append(score(mesh(start.sdf)).observed.chamfer_l1_mm)
+        for name, value in losses(start.sdf).items():
+            result.start_loss.setdefault(name, []).append(value)
+        for schedule in settings.schedules:
+            with tempfile.TemporaryDirectory() as run_dir:
+                fit = Trainer(problem, config(schedule), run_dir, start=start.state_dict()).fit()
+            metrics = score(mesh(fit.field.sdf))
+            result.end_observed_mm.setdefault(schedule, []).append(metrics.observed.chamfer_l1_mm)
+            result.end_chamfer_mm.setdefault(schedule, []).append(metrics.full.chamfer_l1_mm)
+    return Result(**{**result.__dict__, "seconds": time.perf_counter() - clock})
+
+
+def regressed_field(problem: Problem, config: ReconConfig, target_sdf, near_m: torch.Tensor, *, steps: int,
+                    seed: int = 0) -> RadarField:
+    """The field a fit of ``config`` starts from (its initialisation), regressed onto
+    ``target_sdf`` (points (N, 3) -> (N,) [m]) by ``steps`` of the warm start's regression,
+    half of each batch within a voxel of ``near_m`` (M, 3) [m], points near the target's zero set."""
+    with tempfile.TemporaryDirectory() as run_dir:
+        field = Trainer(problem, config, run_dir).field
+    voxel = float(np.max(problem.grid.voxel_m))
+    fit_to_image(field, problem.grid.lower_m, problem.grid.upper_m, target_sdf, None, steps=steps, lr=1e-3, batch=8192,
+                 eikonal_weight=0.01, generator=torch.Generator().manual_seed(seed), near_m=near_m.cpu(),
+                 near_share=0.5, near_jitter_m=voxel)
+    return field
+
+
+@dataclass(frozen=True)
+class _Surface:
+    """A surface as the renderer asks for one: its SDF, and the classes of its materials."""
+
+    sdf: object
+    materials: tuple[str, ...] = MATERIAL_CLASSES
+
+
+class _Losses:
+    """Each data loss (amplitude, complex) of a surface f against the data, every view, at the
+    voxels where some view's image is above 2 % of its peak: rendered with the true materials
+    and the radar's gain, as the fits are."""
+
+    def __init__(self, problem: Problem, config: ReconConfig, known: _TrueMaterials):
+        rc = config.render
+        self.renderer = CoherentRenderer(problem.measurements, problem.grid, element_step=rc.element_step,
+                                         surface=rc.surface, device=config.train.device)
+        self.known, self.gain = known, problem.gain
+        amplitude = self.renderer.observed.abs()
+        self.voxels = (amplitude > 0.02).any(0).nonzero().squeeze(1)
+
+    def __call__(self, sdf) -> dict[str, float]:
+        renderer = self.renderer
+        with torch.no_grad():
+            renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            classes = self.known(renderer.candidates.anchors)
+            probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
+            predicted = renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
+                                 probabilities=probabilities) * (self.gain / renderer.observed_peak)
+        observed = renderer.observed[:, self.voxels]
+        return {name: float(DATA_LOSSES.get(name)(predicted, observed, fit_gain=False))
+                for name in ("amplitude", "complex")}
+
+
+def plot(result: Result, path) -> None:
+    fig, (ends, landscape) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+    errors = result.errors_mm
+    ends.loglog(errors, result.start_observed_mm, "k--", marker="o", label="start")
+    for schedule, values in result.end_observed_mm.items():
+        ends.loglog(errors, values, marker="s", label=f"after {schedule}")
+    ends.axhline(result.truth_observed_mm, color="grey", lw=0.8, label="the true surface, meshed")
+    ends.set_xlabel("rms displacement of the start [mm]")
+    ends.set_ylabel("observed-surface Chamfer-L1 [mm]")
+    ends.set_title("where each loss ends")
+    ends.legend(fontsize=8)
+    for name, values in result.start_loss.items():
+        line, = landscape.semilogx(errors, values, marker="o", label=name)
+        landscape.axhline(result.truth_loss[name], color=line.get_color(), lw=0.8, ls=":")
+    landscape.set_xlabel("rms displacement [mm]")
+    landscape.set_ylabel("relative data loss (dotted: at the truth)")
+    landscape.set_title("each loss at the starts")
+    landscape.legend(fontsize=8)
+    save_figure(fig, path)
