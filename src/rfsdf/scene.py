@@ -492,7 +492,7 @@ class Scene:
         for index, (vertices, faces, normals) in enumerate(meshes or self.zero_set_meshes(cell_m, seed=seed)):
             moved = vertices if move is None else move(vertices, normals)
             centroids, face_normals, area, corners = geo.facet_geometry(moved, faces, normals)
-            keep = area > 0
+            keep = area > geo.SLIVER_AREA * cell_m**2  # degenerate ones too: facet_geometry leaves them about 0
             if len(self.objects) > 1:
                 with torch.no_grad():
                     keep &= self.sdf(vertices[faces].mean(1)) > -0.25 * cell_m

@@ -16,7 +16,7 @@ from .occupancy import occupancy
 from .primitives import Box, CappedCylinder, Capsule, Cylinder, HalfSpace, Sphere, Torus
 from .tracing import TraceResult, sphere_trace
 from .transforms import Rotate, Scale, Translate, rotation_matrix
-from .zero_set import chord_gaps, facet_geometry, project_to_zero_set, refine_creases, vertex_normals
+from .zero_set import SLIVER_AREA, chord_gaps, facet_geometry, project_to_zero_set, refine_creases, vertex_normals
 
 __all__ = [
     "SDF", "as_points", "Grid", "interpolated_sdf", "trilinear",
@@ -26,5 +26,5 @@ __all__ = [
     "union", "intersection", "complement", "difference", "smooth_union", "smooth_intersection",
     "Translate", "Rotate", "Scale", "rotation_matrix",
     "gradient", "gradient_and_curvature", "normals", "eikonal_residual", "occupancy", "sphere_trace", "TraceResult",
-    "project_to_zero_set", "vertex_normals", "chord_gaps", "refine_creases", "facet_geometry",
+    "project_to_zero_set", "vertex_normals", "chord_gaps", "refine_creases", "facet_geometry", "SLIVER_AREA",
 ]

@@ -13,9 +13,10 @@ follow the surface:
 2. Creases refined. Where the surface turns sharply (a box's edge, a cylinder's rim) a
    triangle spanning the crease cuts the corner by a bevel as wide as the cell, and that
    bevel glints; triangles whose edges' midpoints lie off the surface by more than
-   ``CREASE_RATIO`` of the triangle's size are split in four, their new vertices moved onto the surface along their
-   edge's mean normal (so that they land on the crease), until their edges are shorter than
-   a given length (:func:`refine_creases`; the simulator's: a third of the cell).
+   ``CREASE_RATIO`` of the triangle's size are split in four, their new vertices moved onto
+   the surface along their edge's mean normal (so that they land on the crease), until their
+   edges are shorter than a given length (:func:`refine_creases`; the simulator's: a third
+   of the cell).
 3. The chord's sagitta restored. A flat triangle with its corners on a curved surface lies
    inside it, by e^2 / 8 R on average for edges e on a sphere of radius R (28 um for 1.5 mm
    on a 1 cm radius, 0.2 rad of round-trip phase at 79 GHz). Each triangle is moved out along
@@ -41,13 +42,14 @@ import trimesh
 from .differential import gradient
 
 __all__ = ["project_to_zero_set", "project_along", "vertex_normals", "chord_gaps", "refine_creases", "facet_geometry",
-           "CREASE_RATIO", "NEWTON_STEPS"]
+           "CREASE_RATIO", "SLIVER_AREA", "NEWTON_STEPS"]
 
 NEWTON_STEPS = 3  # projections onto f = 0 of a vertex interpolated on a cell's edge (float64)
 # a chord off the surface by this share of its triangle's longest edge marks a crease: a smooth
 # surface's chords leave it by e / 8R, 1.6 % of 1.26 mm on the demo's tightest radius (1 cm);
 # a 90 degree crease's by about a quarter of the edge
 CREASE_RATIO = 0.05
+SLIVER_AREA = 1e-6  # of a cell's area: a triangle smaller is one of marching cubes' slivers (or degenerate)
 _MAX_ROUNDS = 12  # of splitting crease triangles in four
 
 SDFCallable = Callable[[torch.Tensor], torch.Tensor]
@@ -85,8 +87,9 @@ def refine_creases(sdf: SDFCallable, vertices: torch.Tensor, faces: torch.Tensor
     a chord off the surface by more than ``ratio`` of their longest edge (:func:`chord_gaps`:
     those across a crease; a smooth surface's sagitta is the height correction's) are split
     in four until their longest edge is within ``min_edge_m`` [m], their new vertices moved
-    onto the surface along their edge's mean normal (the module docstring). A split triangle's neighbour keeps its edge whole: a crack of the
-    chord's gap along that edge, which the refinement itself makes small."""
+    onto the surface along their edge's mean normal (the module docstring). A split
+    triangle's neighbour keeps its edge whole: a crack of the chord's gap along that edge,
+    which the refinement itself makes small."""
     vertices = torch.as_tensor(vertices, dtype=torch.float64)
     faces = torch.as_tensor(faces, dtype=torch.int64)
     normals = vertex_normals(sdf, vertices)

@@ -258,6 +258,7 @@ class SensingOperator:
         acq = self.acq
         k = self._wavenumbers(points.device).to(points.dtype if points.dtype == torch.float64 else torch.float32)
         g = grad_y.conj().permute(0, 3, 1, 2)  # (V, K, T, R)
+        per_frequency_c = c.shape[1] > 1
         grad_c = torch.zeros_like(c)
         grad_points = torch.zeros(points.shape, dtype=points.dtype, device=points.device) if need_points else None
         for views, pts in self._chunks(points.shape[0], points.device, _BACKWARD_BUFFERS):
@@ -267,17 +268,17 @@ class SensingOperator:
             g_v = g[views]
             per_tx = u * torch.matmul(g_v, w)  # (v, K, T, q): sum_j conj(g) A over Rx
             per_frequency = per_tx.sum(dim=2)  # (v, K, q)
-            grad_c[views, :, pts] = (per_frequency if c.shape[1] > 1 else per_frequency.sum(1, keepdim=True)).conj()
+            grad_c[views, :, pts] = (per_frequency if per_frequency_c else per_frequency.sum(1, keepdim=True)).conj()
             if need_points:
-                weights = c[views, :, None, pts]  # (v, 1 or K, 1, q)
                 per_rx = w * torch.matmul(g_v.transpose(-1, -2), u)  # (v, K, R, q): sum_i over Tx
                 total = 0
                 for per_element, (_, _, unit, dlog) in ((per_tx, tx), (per_rx, rx)):
-                    per_element = weights * per_element  # (v, K, E, q)
+                    if per_frequency_c:  # c inside the sum over frequencies; else it factors out of it
+                        per_element = c[views, :, None, pts] * per_element  # (v, K, E, q)
                     plain = per_element.sum(1)  # (v, E, q)
                     weighted = (k[None, :, None, None] * per_element).sum(1)
                     total = total + (plain[..., None] * dlog).sum(1) - 1j * (weighted[..., None] * unit).sum(1)
-                grad_points[pts] += total.real.sum(0)
+                grad_points[pts] += (total if per_frequency_c else c[views, 0, pts, None] * total).real.sum(0)
         return grad_c, grad_points
 
 

@@ -155,8 +155,9 @@ class LossConfig(StrictModel):
 
     def stage_at(self, fraction: float) -> str:
         """The data loss at ``fraction`` (0 to 1) of the steps."""
-        return next((stage.data for stage in self.stages if fraction < stage.until), self.stages[-1].data) \
-            if self.stages else self.data
+        if not self.stages:
+            return self.data
+        return next((stage.data for stage in self.stages if fraction < stage.until), self.stages[-1].data)
 
 
 class SamplingConfig(StrictModel):

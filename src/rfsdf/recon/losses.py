@@ -65,7 +65,7 @@ def complex_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: b
     the loss does not change with them). It sees the carrier phase of every glint relative
     to the others: a smooth 0.25 mm error of the demo's surface raises it as much as a 1 mm
     error raises the amplitude loss; beyond about lambda / 4 its gradient points a cycle the
-    wrong way (``benchmarks/basin.py``)."""
+    wrong way (study ``basin``)."""
     with torch.no_grad():
         tiny = torch.finfo(predicted.real.dtype).tiny
         inner = (predicted.conj() * observed).sum(1)  # (v,)

@@ -47,11 +47,10 @@ from ..radar import SPEED_OF_LIGHT, Measurements, SensingOperator
 from ..radar.facets import facet_phase_weights
 from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, po_spectrum, scatter
+from ..radar.surface_plan import SURFACES
 from ..registry import Registry
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
 from .surface_mesh import SurfaceMesh, mesh_facets, surface_mesh
-
-SURFACES = ("facets", "points")
 
 __all__ = ["RENDERERS", "CoherentRenderer"]
 

@@ -48,7 +48,8 @@ import torch
 
 from ..geometry import gradient_and_curvature
 
-__all__ = ["SurfaceCandidates", "surface_candidates", "project_to_surface", "smoothed_velocity", "cells_per_voxel"]
+__all__ = ["SurfaceCandidates", "surface_candidates", "project_to_surface", "smoothed_velocity", "cells_per_voxel",
+           "crossing_voxels"]
 
 _EVAL_CHUNK = 1 << 16  # points per SDF call while searching candidates
 _CROSSING_MARGIN = 1.0  # a voxel can hold surface when |f(centre)| < margin * voxel (sqrt(3)/2 exact)
@@ -92,6 +93,12 @@ def cells_per_voxel(voxel_m: float, spacing_m: float) -> int:
     return max(1, math.ceil(voxel_m / spacing_m - 1e-9))
 
 
+def crossing_voxels(voxel_centres_m: torch.Tensor, voxel_values_m: torch.Tensor, voxel_m: float) -> torch.Tensor:
+    """(M, 3) [m] the voxel centres (N, 3) whose values f (N,) [m] say the zero set may cross
+    their voxel of edge ``voxel_m`` [m]."""
+    return voxel_centres_m[voxel_values_m.abs() < _CROSSING_MARGIN * voxel_m]
+
+
 def surface_candidates(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centres_m: torch.Tensor,
                        voxel_values_m: torch.Tensor, voxel_m: float, spacing_m: float,
                        generator: torch.Generator) -> SurfaceCandidates:
@@ -100,7 +107,7 @@ def surface_candidates(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centre
     device = voxel_centres_m.device
     cells = cells_per_voxel(voxel_m, spacing_m)
     h = voxel_m / cells
-    crossing = voxel_centres_m[voxel_values_m.abs() < _CROSSING_MARGIN * voxel_m]
+    crossing = crossing_voxels(voxel_centres_m, voxel_values_m, voxel_m)
     offsets = torch.stack(torch.meshgrid(*[torch.arange(cells, device=device)] * 3, indexing="ij"), -1).reshape(-1, 3)
     corner = crossing - 0.5 * voxel_m  # (M, 3) lower corners
     kept, values = [], []

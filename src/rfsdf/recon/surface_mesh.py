@@ -25,13 +25,12 @@ from typing import Callable
 import numpy as np
 import torch
 
-from ..geometry import facet_geometry, gradient, project_to_zero_set
+from ..geometry import SLIVER_AREA, facet_geometry, gradient, project_to_zero_set
 from ..mesh import mesh_blocks
-from .surface import cells_per_voxel, smoothed_velocity
+from .surface import cells_per_voxel, crossing_voxels, smoothed_velocity
 
 __all__ = ["SurfaceMesh", "surface_mesh", "mesh_facets", "Facets"]
 
-_CROSSING_MARGIN = 1.0  # a voxel can hold surface when |f(centre)| < margin * voxel, as recon/surface.py
 _NEWTON_STEPS = 2  # onto f = 0 from a vertex interpolated on a cell's edge
 _MIN_GRADIENT_SQ = 0.25  # |grad f|^2 below which a vertex's Newton step is shortened (|grad f| = 1 on an SDF)
 
@@ -104,7 +103,7 @@ def surface_mesh(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centres_m: t
     ``voxel_m / s`` <= ``cell_m`` [m]. An empty mesh where no voxel holds surface."""
     device, dtype = voxel_centres_m.device, voxel_centres_m.dtype
     cells = cells_per_voxel(voxel_m, cell_m)
-    crossing = voxel_centres_m[voxel_values_m.abs() < _CROSSING_MARGIN * voxel_m]
+    crossing = crossing_voxels(voxel_centres_m, voxel_values_m, voxel_m)
     sdf_in_dtype = lambda p: sdf(p.to(device, dtype))  # noqa: E731
     try:
         mesh = mesh_blocks(sdf_in_dtype, (crossing - 0.5 * voxel_m).cpu().double().numpy(), voxel_m / cells, cells,
@@ -116,9 +115,10 @@ def surface_mesh(sdf: Callable[[torch.Tensor], torch.Tensor], voxel_centres_m: t
     vertices = project_to_zero_set(sdf_in_dtype, torch.as_tensor(np.asarray(mesh.vertices), dtype=dtype, device=device),
                                    steps=_NEWTON_STEPS)
     faces = torch.as_tensor(np.asarray(mesh.faces), dtype=torch.int64, device=device)
-    faces = faces[_facets(vertices, vertices, faces).area_m2 > 1e-6 * cell_m**2]  # marching cubes' slivers out
     gradients = torch.cat([gradient(sdf, chunk) for chunk in vertices.split(1 << 16)]) if len(vertices) else vertices
-    return SurfaceMesh(vertices, gradients, faces, _facets(vertices, gradients, faces))
+    facets = _facets(vertices, gradients, faces)
+    kept = facets.area_m2 > SLIVER_AREA * cell_m**2  # marching cubes' slivers out
+    return SurfaceMesh(vertices, gradients, faces[kept], facets.select(kept))
 
 
 def mesh_facets(sdf: Callable[[torch.Tensor], torch.Tensor], mesh: SurfaceMesh, *, smoothing_m: float = 0.0) -> Facets:

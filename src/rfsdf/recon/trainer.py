@@ -39,7 +39,7 @@ from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pool
 from .schedules import SCHEDULES
 from .warm_start import detection_threshold, excluded_voxels, warm_start
 
-__all__ = ["Problem", "StepRecord", "FitResult", "Trainer"]
+__all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "initial_field"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +115,14 @@ def _field_kwargs(grid: Grid, config: ReconConfig) -> dict:
                 materials=tuple(fc.materials))
 
 
+def initial_field(grid: Grid, config: ReconConfig, device) -> RadarField:
+    """The field a fit of ``config`` on ``grid`` starts from before its warm start (seeded by
+    ``train.seed``, the global random state left as it was), on ``device``."""
+    with torch.random.fork_rng():
+        torch.manual_seed(config.train.seed)
+        return RadarField(**_field_kwargs(grid, config)).to(device)
+
+
 def _resumable(config: dict) -> dict:
     """What a checkpoint must share with the config that resumes it: all but the device (a
     fit started on a GPU may go on on a CPU)."""
@@ -132,9 +140,7 @@ class Trainer:
         self.progress, self.start = progress, start
         self.device = resolve_device(config.train.device, "train.device")
         self.field_kwargs = _field_kwargs(problem.grid, config)
-        with torch.random.fork_rng():
-            torch.manual_seed(config.train.seed)
-            self.field = RadarField(**self.field_kwargs).to(self.device)
+        self.field = initial_field(problem.grid, config, self.device)
         tc, rc = config.train, config.render
         head = self.field.material_head
         groups = [{"params": self.field.geometry.parameters(), "lr": tc.lr},

@@ -34,6 +34,7 @@ from ..radar.simulate import SIMULATED_GAIN
 from ..recon import Problem, ReconConfig, Trainer
 from ..recon.losses import DATA_LOSSES
 from ..recon.render import CoherentRenderer
+from ..recon.trainer import initial_field
 from ..recon.warm_start import fit_to_image
 from ..scene import load_scene
 from ..viz.figures import plt, save_figure
@@ -166,8 +167,7 @@ def regressed_field(problem: Problem, config: ReconConfig, target_sdf, near_m: t
     """The field a fit of ``config`` starts from (its initialisation), regressed onto
     ``target_sdf`` (points (N, 3) -> (N,) [m]) by ``steps`` of the warm start's regression,
     half of each batch within a voxel of ``near_m`` (M, 3) [m], points near the target's zero set."""
-    with tempfile.TemporaryDirectory() as run_dir:
-        field = Trainer(problem, config, run_dir).field
+    field = initial_field(problem.grid, config, resolve_device(config.train.device, "train.device"))
     voxel = float(np.max(problem.grid.voxel_m))
     fit_to_image(field, problem.grid.lower_m, problem.grid.upper_m, target_sdf, None, steps=steps, lr=1e-3, batch=8192,
                  eikonal_weight=0.01, generator=torch.Generator().manual_seed(seed), near_m=near_m.cpu(),
