@@ -100,7 +100,18 @@ class RenderConfig(StrictModel):
     spacing_m: PositiveFloat | None = None  # the facets' marching-cubes cell or the points' spacing; default lambda / 3
     shadows: bool = True
     refresh_every: PositiveInt = 10  # steps between new surface samples (and facing/shadow masks)
-    smoothing_m: NonNegativeFloat = 0.006  # local mean of the surface velocity over this radius [m]
+    # local mean of the surface velocity over this radius [m] (a Sobolev-type gradient); None:
+    # 6 mm for points, whose speckle makes each sample's force random, 0 for facets, whose
+    # forces are not: there the mean erased the tilt a facet's neighbours ask for and the fit
+    # drifted from the truth (docs/results/demo-quality.md, "The surface's own gradient")
+    smoothing_m: NonNegativeFloat | None = None
+
+    @property
+    def surface_smoothing_m(self) -> float:
+        """``smoothing_m``, or its default for ``surface``."""
+        if self.smoothing_m is not None:
+            return self.smoothing_m
+        return 0.006 if self.surface == "points" else 0.0
 
     @field_validator("renderer")
     @classmethod

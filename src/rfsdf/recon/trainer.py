@@ -156,7 +156,7 @@ class Trainer:
         self.renderer = RENDERERS.get(rc.renderer)(
             problem.measurements, problem.grid, element_step=rc.element_step, surface=rc.surface,
             spacing_m=rc.spacing_m,
-            shadows=rc.shadows, device=self.device, smoothing_m=rc.smoothing_m, progress=progress)
+            shadows=rc.shadows, device=self.device, smoothing_m=rc.surface_smoothing_m, progress=progress)
         self.observed = self.renderer.observed.abs()  # (V, N) amplitude, peak 1
         self.probabilities = data_voxel_probabilities(self.observed, config.sampling.data_focus)
         self.step = 0
