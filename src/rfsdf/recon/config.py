@@ -102,8 +102,8 @@ class RenderConfig(StrictModel):
     refresh_every: PositiveInt = 10  # steps between new surface samples (and facing/shadow masks)
     # local mean of the surface velocity over this radius [m] (a Sobolev-type gradient); None:
     # 6 mm for points, whose speckle makes each sample's force random, 0 for facets, whose
-    # forces are not: there the mean erased the tilt a facet's neighbours ask for and the fit
-    # drifted from the truth (docs/results/demo-quality.md, "The surface's own gradient")
+    # forces are not: there the mean erased the tilt a facet's neighbours ask for, and a fit
+    # started on the true ball roughened it (docs/results/demo-quality.md, "The surface's own gradient")
     smoothing_m: NonNegativeFloat | None = None
 
     @property

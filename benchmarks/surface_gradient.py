@@ -1,0 +1,100 @@
+"""Does the fit's own gradient move a surface where the data say? The basin study's quick
+set-up (the 2 cm metal ball, the tests' six-view toy radar, a 32 x 4 field regressed onto
+the true surface displaced by smooth errors), its metal and the radar's gain known so that
+only f is free, fitted with each variant of the renderer and optimiser settings. Measured per
+start and variant: the observed-surface Chamfer-L1 before and after, f's mean and rms at
+points of the seen true surface (mean > 0: the surface shrank), and each data loss over all
+views and voxels (the basin study's) at the start, at the end and at the true surface.
+
+Usage: python benchmarks/surface_gradient.py [--errors-mm 0,1,4]
+       [--variants '[{"smoothing_m": 0.006, "steps": 30}, ...]'] [--out FILE]
+A variant's keys: lr, lr_end, steps, refresh_every, smoothing_m, data (a data loss).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from functools import partial
+from pathlib import Path
+
+import torch
+
+from rfsdf.geometry import Grid
+from rfsdf.jsonio import to_json
+from rfsdf.mesh import extract_mesh
+from rfsdf.metrics import evaluate_scene
+from rfsdf.radar import simulate
+from rfsdf.radar.coverage import observed_mask
+from rfsdf.radar.simulate import SIMULATED_GAIN
+from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.scene import load_scene
+from rfsdf.studies import basin
+
+VARIANTS = [
+    {"lr": 1e-4, "lr_end": 1e-5, "steps": 30, "refresh_every": 1, "smoothing_m": 0.006},
+    {"lr": 1e-4, "lr_end": 1e-5, "steps": 40, "refresh_every": 10, "smoothing_m": 0.0},
+    {"lr": 3e-4, "lr_end": 3e-5, "steps": 100, "refresh_every": 1, "smoothing_m": 0.006},
+    {"lr": 3e-4, "lr_end": 3e-5, "steps": 100, "refresh_every": 1, "smoothing_m": 0.0},
+    {"lr": 3e-4, "lr_end": 3e-5, "steps": 100, "refresh_every": 1, "smoothing_m": 0.0, "data": "complex"},
+]
+
+
+def config(settings: basin.Settings, lr=1e-4, lr_end=1e-5, steps=30, refresh_every=10, smoothing_m=0.0,
+           data="amplitude") -> ReconConfig:
+    return ReconConfig.model_validate({
+        "field": {"width": settings.width, "depth": settings.depth},
+        "render": {"element_step": settings.element_step, "refresh_every": refresh_every, "smoothing_m": smoothing_m},
+        "loss": {"data": data}, "sampling": {"data_batch": settings.data_batch},
+        "train": {"steps": steps, "checkpoint_every": steps, "geometry_delay": 0.0, "lr": lr, "lr_end": lr_end,
+                  "device": "cpu"}})
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--errors-mm", default="0,1,4")
+    parser.add_argument("--variants", type=json.loads, default=VARIANTS)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/surface-gradient.json"))
+    args = parser.parse_args()
+    settings = basin.QUICK
+    scene = load_scene(settings.scene)
+    data = simulate(scene, basin.small_radar(), seed=settings.seed)
+    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
+    known = basin._TrueMaterials(scene)
+    problem = Problem(data, grid, gain=SIMULATED_GAIN, known_materials=known)
+    score = partial(evaluate_scene, scene=scene, samples=20_000, seed=settings.seed,
+                    observed=partial(observed_mask, acquisition=data.acquisition, occluder=scene.sdf))
+    chamfer = lambda sdf: score(extract_mesh(sdf, scene.lower_m, scene.upper_m, 64)).observed.chamfer_l1_mm  # noqa: E731
+    losses = basin._Losses(problem, config(settings), known)
+    samples = scene.sample_surface(0.001, seed=1, max_samples=50_000)
+    seen = samples.points[observed_mask(samples.points, samples.normals, data.acquisition, scene.sdf)].float()
+
+    def offset_mm(sdf) -> dict[str, float]:
+        with torch.no_grad():
+            values = sdf(seen)
+        return {"mean_mm": 1e3 * float(values.mean()), "rms_mm": 1e3 * float(values.pow(2).mean().sqrt())}
+
+    displacement = basin.smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(0))
+    near = scene.sample_surface(settings.voxel_m / 2, seed=0, max_samples=50_000).points
+    rows = []
+    for error_mm in (float(e) for e in args.errors_mm.split(",")):
+        target = lambda p, e=error_mm * 1e-3: scene.sdf(p) - e * displacement(p)  # noqa: E731
+        start = basin.regressed_field(problem, config(settings), target, near, steps=settings.regress_steps)
+        before = {"observed_chamfer_mm": chamfer(start.sdf), **offset_mm(start.sdf), "loss": losses(start.sdf)}
+        for variant in args.variants:
+            clock = time.perf_counter()
+            with tempfile.TemporaryDirectory() as folder:
+                fit = Trainer(problem, config(settings, **variant), folder, start=start.state_dict()).fit()
+            after = {"observed_chamfer_mm": chamfer(fit.field.sdf), **offset_mm(fit.field.sdf),
+                     "loss": losses(fit.field.sdf)}
+            rows.append({"error_mm": error_mm, "variant": variant, "before": before, "after": after,
+                         "seconds": time.perf_counter() - clock})
+            print(to_json(rows[-1], indent=None), flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(to_json({"truth_loss": losses(scene.sdf), "rows": rows}))
+
+
+if __name__ == "__main__":
+    main()
