@@ -19,14 +19,15 @@ class DemoData:
     image: Image
 
 
-def demo_data(settings: DemoSettings | None = None) -> DemoData:
+def demo_data(settings: DemoSettings | None = None, device=None) -> DemoData:
     """Simulate and image the demo scene exactly as ``rfsdf demo`` does (about 40 s on 2 cores);
-    ``settings`` None: the demo's defaults."""
+    ``settings`` None: the demo's defaults; ``device`` where the simulator and the matched
+    filter run (None: the CPU, as the demo's default on a machine without a GPU)."""
     settings = settings or DemoSettings()
     scene = load_scene(settings.scene)
     measurements = simulate(scene, load_radar(settings.radar), seed=settings.seed,
                             max_samples=settings.max_surface_samples,
                             samples_per_wavelength=settings.samples_per_wavelength,
-                            stratified=settings.stratified_samples, surface=settings.surface)
+                            stratified=settings.stratified_samples, surface=settings.surface, device=device)
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    return DemoData(settings, scene, measurements, matched_filter(measurements, grid))
+    return DemoData(settings, scene, measurements, matched_filter(measurements, grid, device=device))

@@ -58,8 +58,9 @@ def main() -> None:
     args = parser.parse_args()
     device = resolve_device(args.device, "--device")
     settings = QUICK if args.quick else DemoSettings()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter()
-    data = demo_data(settings)
+    data = demo_data(settings, device)
     scene, grid = data.scene, data.image.grid
     clean = clean_image(data.measurements, grid, device=device)
     print(f"data and CLEAN {time.perf_counter() - clock:.0f} s", flush=True)
@@ -107,9 +108,7 @@ def main() -> None:
                        "after": scores(fit.field), "data_loss_first": fit.log[0].data, "data_loss_last": fit.log[-1].data}
             rows.append(row)
             print(to_json(row, indent=None), flush=True)
-    result = {"device": str(device), "seed": args.seed, "rows": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(to_json(result))
+            args.out.write_text(to_json({"device": str(device), "seed": args.seed, "rows": rows}))  # each row kept
 
 
 if __name__ == "__main__":
