@@ -25,7 +25,7 @@ import torch
 from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
-from rfsdf.metrics import evaluate_scene
+from rfsdf.metrics import evaluate_scene, surface_offset_mm
 from rfsdf.radar import simulate
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.simulate import SIMULATED_GAIN
@@ -62,19 +62,18 @@ def main() -> None:
     scene = load_scene(settings.scene)
     data = simulate(scene, basin.small_radar(), seed=settings.seed)
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    known = basin._TrueMaterials(scene)
+    known = basin.TrueMaterials(scene)
     problem = Problem(data, grid, gain=SIMULATED_GAIN, known_materials=known)
     score = partial(evaluate_scene, scene=scene, samples=20_000, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=data.acquisition, occluder=scene.sdf))
     chamfer = lambda sdf: score(extract_mesh(sdf, scene.lower_m, scene.upper_m, 64)).observed.chamfer_l1_mm  # noqa: E731
-    losses = basin._Losses(problem, config(settings), known)
+    losses = basin.SurfaceLosses(problem, config(settings), known)
     samples = scene.sample_surface(0.001, seed=1, max_samples=50_000)
     seen = samples.points[observed_mask(samples.points, samples.normals, data.acquisition, scene.sdf)].float()
 
-    def offset_mm(sdf) -> dict[str, float]:
-        with torch.no_grad():
-            values = sdf(seen)
-        return {"mean_mm": 1e3 * float(values.mean()), "rms_mm": 1e3 * float(values.pow(2).mean().sqrt())}
+    def offset(sdf) -> dict[str, float]:
+        mean, rms = surface_offset_mm(sdf, seen)
+        return {"mean_mm": mean, "rms_mm": rms}
 
     displacement = basin.smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(0))
     near = scene.sample_surface(settings.voxel_m / 2, seed=0, max_samples=50_000).points
@@ -82,12 +81,12 @@ def main() -> None:
     for error_mm in (float(e) for e in args.errors_mm.split(",")):
         target = lambda p, e=error_mm * 1e-3: scene.sdf(p) - e * displacement(p)  # noqa: E731
         start = basin.regressed_field(problem, config(settings), target, near, steps=settings.regress_steps)
-        before = {"observed_chamfer_mm": chamfer(start.sdf), **offset_mm(start.sdf), "loss": losses(start.sdf)}
+        before = {"observed_chamfer_mm": chamfer(start.sdf), **offset(start.sdf), "loss": losses(start.sdf)}
         for variant in args.variants:
             clock = time.perf_counter()
             with tempfile.TemporaryDirectory() as folder:
                 fit = Trainer(problem, config(settings, **variant), folder, start=start.state_dict()).fit()
-            after = {"observed_chamfer_mm": chamfer(fit.field.sdf), **offset_mm(fit.field.sdf),
+            after = {"observed_chamfer_mm": chamfer(fit.field.sdf), **offset(fit.field.sdf),
                      "loss": losses(fit.field.sdf)}
             rows.append({"error_mm": error_mm, "variant": variant, "before": before, "after": after,
                          "seconds": time.perf_counter() - clock})

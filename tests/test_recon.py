@@ -14,6 +14,7 @@ from rfsdf.errors import RfsdfError
 from rfsdf.field import RadarField
 from rfsdf.geometry import Grid, gradient
 from rfsdf.materials import mixture_fresnel
+from rfsdf.metrics import surface_offset_mm
 from rfsdf.radar import simulate
 from rfsdf.radar.scattering import lit_mask
 from rfsdf.radar.simulate import SAMPLES_PER_WAVELENGTH
@@ -329,14 +330,6 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data, dilated_starts, threa
     assert np.median(start - end) > wavelength / 4, radii
 
 
-def _surface_error_mm(sdf, points: torch.Tensor) -> tuple[float, float]:
-    """Mean and rms [mm] of f at points (N, 3) of the true surface (the part the views see): how far f = 0 lies inside
-    them (mean > 0: the surface shrank), and how rough it is about them."""
-    with torch.no_grad():
-        values = sdf(points)
-    return 1e3 * float(values.mean()), 1e3 * float(values.pow(2).mean().sqrt())
-
-
 @pytest.mark.parametrize("smoothing_m, stays", [(None, True), (0.006, False)])
 def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_path, smoothing_m, stays):
     """The converged renderer's loss has its minimum at the truth, and its own gradient finds
@@ -365,9 +358,9 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
     samples = scene.sample_surface(0.001, seed=1, max_samples=20_000)
     start = regressed_field(problem, config, scene.sdf, samples.points, steps=300)
     surface = samples.points[observed_mask(samples.points, samples.normals, data.acquisition, scene.sdf)].float()
-    before = _surface_error_mm(start.sdf, surface)
+    before = surface_offset_mm(start.sdf, surface)
     fit = Trainer(problem, config, tmp_path / "run", start=start.state_dict()).fit()
-    after = _surface_error_mm(fit.field.sdf, surface)
+    after = surface_offset_mm(fit.field.sdf, surface)
     assert abs(before[0]) < 0.2 and before[1] < 0.3, before  # the start: the regression's own error
     held = abs(after[0]) < 0.1 and after[1] < before[1] + 0.05
     assert held == stays, (before, after)

@@ -241,6 +241,14 @@ def specular_feet(scene, acquisition, *, rays_per_side: int = 181, normal_cos: f
     return torch.stack(list(feet.values())) if feet else torch.zeros(0, 3, dtype=torch.float64)
 
 
+def surface_offset_mm(sdf: Callable, points: torch.Tensor) -> tuple[float, float]:
+    """Mean and rms [mm] of a fitted ``sdf`` at ``points`` (N, 3) [m] of the true surface: how
+    far its zero set lies inside them (mean > 0: the surface shrank), and how rough it is about them."""
+    with torch.no_grad():
+        values = sdf(points)
+    return 1e3 * float(values.mean()), 1e3 * float(values.pow(2).mean().sqrt())
+
+
 def seen_surface_errors(sdf: Callable, feet: torch.Tensor, within_m: float = 0.01) -> dict:
     """How far a fitted surface (``sdf``: points (N, 3) -> (N,) [m]) is from the true surface
     where the data see it, at :func:`specular_feet` ``feet`` (F, 3): |f| there, its mean and

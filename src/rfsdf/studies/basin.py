@@ -90,7 +90,7 @@ class Result:
     seconds: float = 0.0
 
 
-class _TrueMaterials:
+class TrueMaterials:
     """Points -> class index of the nearest object's material (``Problem.known_materials``)."""
 
     def __init__(self, scene):
@@ -124,7 +124,7 @@ def run(settings: Settings) -> Result:
     radar = small_radar() if settings.radar == "small" else load_radar(settings.radar)
     data = simulate(scene, radar, seed=settings.seed, device=device)
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    known = _TrueMaterials(scene)
+    known = TrueMaterials(scene)
     problem = Problem(data, grid, source=f"{settings.scene} ({settings.radar})", gain=SIMULATED_GAIN,
                       known_materials=known)
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
@@ -141,7 +141,7 @@ def run(settings: Settings) -> Result:
             "train": {"steps": settings.steps, "checkpoint_every": settings.steps, "geometry_delay": 0.0,
                       "seed": settings.seed, "device": str(device)}})
 
-    losses = _Losses(problem, config("amplitude"), known)
+    losses = SurfaceLosses(problem, config("amplitude"), known)
     displacement = smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(settings.seed))
     near = scene.sample_surface(settings.voxel_m / 2, seed=settings.seed, max_samples=50_000).points
     result = Result(list(settings.errors_mm), [], truth_loss=losses(scene.sdf),
@@ -183,12 +183,12 @@ class _Surface:
     materials: tuple[str, ...] = MATERIAL_CLASSES
 
 
-class _Losses:
+class SurfaceLosses:
     """Each data loss (amplitude, complex) of a surface f against the data, every view, at the
     voxels where some view's image is above 2 % of its peak: rendered with the true materials
     and the radar's gain, as the fits are."""
 
-    def __init__(self, problem: Problem, config: ReconConfig, known: _TrueMaterials):
+    def __init__(self, problem: Problem, config: ReconConfig, known: TrueMaterials):
         rc = config.render
         self.renderer = CoherentRenderer(problem.measurements, problem.grid, element_step=rc.element_step,
                                          surface=rc.surface, device=config.train.device)
