@@ -1,0 +1,138 @@
+"""TI mmWave Studio's ``*.mmwave.json``: the chirp, channels and frame of a capture.
+
+Read from ``mmWaveDevices[0].rfConfig`` (some versions write one device as an object rather
+than a list): ``rlProfiles[0].rlProfileCfg_t`` (start frequency [GHz], slope [MHz/us],
+ADC samples, sample rate [ksps], idle, ADC start and ramp end times [us]), ``rlChanCfg_t``
+(Rx and Tx enable masks), ``rlAdcOutCfg_t.fmt`` (16 bits; real or complex samples) and
+``rlFrameCfg_t`` (chirps of a loop, loops, frames, periodicity [ms]). The first ADC sample
+lies at the start frequency plus slope x ADC start time.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ...atomic import atomic_path
+from ...errors import RfsdfError
+
+__all__ = ["ChirpConfig", "read_mmwave_json", "write_mmwave_json"]
+
+_SIXTEEN_BITS = 2  # rlAdcOutCfg_t.fmt.b2AdcBits
+_REAL = 0  # rlAdcOutCfg_t.fmt.b2AdcOutFmt: 0 real, 1 complex (1x), 2 complex (2x)
+
+
+@dataclass(frozen=True)
+class ChirpConfig:
+    """One chirp profile and the frames of a capture, in SI units."""
+
+    start_hz: float
+    slope_hz_per_s: float
+    sample_rate_hz: float
+    samples: int
+    adc_start_s: float
+    idle_s: float
+    ramp_end_s: float
+    rx_mask: int  # bit k: Rx k enabled
+    tx_mask: int
+    complex: bool
+    chirps_per_loop: int  # chirps of one loop (one per Tx in TDM MIMO)
+    loops: int
+    frames: int
+    frame_period_s: float
+
+    @property
+    def rx(self) -> int:
+        return bin(self.rx_mask).count("1")
+
+    @property
+    def chirps(self) -> int:
+        """Chirps in one frame."""
+        return self.chirps_per_loop * self.loops
+
+    def frequencies_hz(self) -> np.ndarray:
+        """(samples,) [Hz]: the instantaneous frequency of each ADC sample, f0 + S (t_adc + n / f_s)."""
+        return self.start_hz + self.slope_hz_per_s * (self.adc_start_s + np.arange(self.samples) / self.sample_rate_hz)
+
+
+# (JSON field, ChirpConfig field, scale to SI)
+_PROFILE = (("startFreqConst_GHz", "start_hz", 1e9), ("freqSlopeConst_MHz_usec", "slope_hz_per_s", 1e12),
+            ("digOutSampleRate", "sample_rate_hz", 1e3), ("numAdcSamples", "samples", 1),
+            ("adcStartTimeConst_usec", "adc_start_s", 1e-6), ("idleTimeConst_usec", "idle_s", 1e-6),
+            ("rampEndTime_usec", "ramp_end_s", 1e-6))
+
+
+def _where(keys) -> str:
+    """``("a", 0, "b")`` -> ``"a[0].b"``."""
+    return "".join(f"[{key}]" if isinstance(key, int) else f".{key}" for key in keys).lstrip(".")
+
+
+def read_mmwave_json(path) -> ChirpConfig:
+    """The :class:`ChirpConfig` of an mmWave Studio ``*.mmwave.json``; one error line naming the
+    file and the field for anything missing or out of range."""
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text())
+    except OSError as exc:
+        raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise RfsdfError(f"{path}: not JSON ({exc})") from None
+
+    def field(*keys):
+        value = document
+        for depth, key in enumerate(keys):
+            if isinstance(key, int) and isinstance(value, dict):  # one device written as an object
+                continue
+            try:
+                value = value[key]
+            except (KeyError, IndexError, TypeError):
+                raise RfsdfError(f"{path}: {_where(keys[:depth + 1])}: missing") from None
+        return value
+
+    def number(keys, kind=float, positive=True):
+        value = field(*keys)
+        try:
+            number = kind(int(value, 16) if isinstance(value, str) and value.lower().startswith("0x") else value)
+        except (TypeError, ValueError):
+            raise RfsdfError(f"{path}: {_where(keys)}: {value!r} is not a number") from None
+        if not np.isfinite(number) or number < 0 or (positive and number == 0):
+            raise RfsdfError(f"{path}: {_where(keys)}: {value!r} must be {'> 0' if positive else '>= 0'}")
+        return number
+
+    rf = ("mmWaveDevices", 0, "rfConfig")
+    profile = (*rf, "rlProfiles", 0, "rlProfileCfg_t")
+    values = {name: number((*profile, key), int if name == "samples" else float,
+                           positive=name not in ("adc_start_s", "idle_s")) * scale
+              for key, name, scale in _PROFILE}
+    bits = field(*rf, "rlAdcOutCfg_t", "fmt", "b2AdcBits")
+    if bits != _SIXTEEN_BITS:
+        raise RfsdfError(f"{path}: {_where((*rf, 'rlAdcOutCfg_t', 'fmt', 'b2AdcBits'))}: {bits!r}; "
+                         "only 16-bit samples (2) are read")
+    frame = (*rf, "rlFrameCfg_t")
+    first, last = (number((*frame, key), int, positive=False) for key in ("chirpStartIdx", "chirpEndIdx"))
+    if last < first:
+        raise RfsdfError(f"{path}: {_where((*frame, 'chirpEndIdx'))}: {last} is before chirpStartIdx {first}")
+    return ChirpConfig(**values, rx_mask=number((*rf, "rlChanCfg_t", "rxChannelEn"), int),
+                       tx_mask=number((*rf, "rlChanCfg_t", "txChannelEn"), int),
+                       complex=field(*rf, "rlAdcOutCfg_t", "fmt", "b2AdcOutFmt") != _REAL,
+                       chirps_per_loop=last - first + 1, loops=number((*frame, "numLoops"), int),
+                       frames=number((*frame, "numFrames"), int, positive=False),
+                       frame_period_s=number((*frame, "framePeriodicity_msec")) * 1e-3)
+
+
+def write_mmwave_json(path, config: ChirpConfig) -> Path:
+    """An ``*.mmwave.json`` holding ``config`` in mmWave Studio's fields (the ones read back)."""
+    profile = {key: getattr(config, name) / scale for key, name, scale in _PROFILE}
+    profile["numAdcSamples"] = config.samples
+    document = {"configGenerator": {"createdBy": "rfsdf"}, "mmWaveDevices": [{"mmWaveDeviceId": 0, "rfConfig": {
+        "rlChanCfg_t": {"rxChannelEn": hex(config.rx_mask), "txChannelEn": hex(config.tx_mask)},
+        "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": _SIXTEEN_BITS, "b2AdcOutFmt": 1 if config.complex else _REAL}},
+        "rlProfiles": [{"rlProfileCfg_t": {"profileId": 0, **profile}}],
+        "rlFrameCfg_t": {"chirpStartIdx": 0, "chirpEndIdx": config.chirps_per_loop - 1, "numLoops": config.loops,
+                         "numFrames": config.frames, "framePeriodicity_msec": config.frame_period_s * 1e3}}}]}
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(document, indent=2))
+    return Path(path)
