@@ -1,0 +1,123 @@
+"""Real captures in: rfsdf import (rfsdf's HDF5, a TI DCA1000 capture) and import-fmcw."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import click
+
+from .app import main, one_line_errors, refuse_overwriting_inputs
+
+FORMATS = ("auto", "hdf5", "dca1000")
+_SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000"}
+
+
+def _vector(text: str, option: str) -> tuple[float, float, float]:
+    """'X,Y,Z' -> a finite, non-zero 3-vector, or one error line naming ``option``."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
+        raise ValueError(f"{option}: expected three finite numbers X,Y,Z, not all zero; got {text!r}")
+    return values
+
+
+def _capture_format(capture: Path, name: str) -> str:
+    if name != "auto":
+        return name
+    try:
+        return _SUFFIXES[capture.suffix.lower()]
+    except KeyError:
+        raise ValueError(f"{capture}: cannot tell the format from the name; pass --format "
+                         f"({', '.join(FORMATS[1:])})") from None
+
+
+def _ti_configs(paths: tuple[Path, ...]):
+    """The chirp (an mmWave Studio *.mmwave.json) and the lanes (a DCA1000 cf.json, or None) of --config."""
+    from ..errors import RfsdfError
+    from ..radar.formats.dca1000 import read_cf_json
+    from ..radar.formats.mmwave_studio import read_mmwave_json
+
+    chirp = lanes = None
+    for path in paths:
+        try:
+            keys = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise RfsdfError(f"{path}: cannot read as JSON ({getattr(exc, 'strerror', None) or exc})") from None
+        if isinstance(keys, dict) and "mmWaveDevices" in keys:
+            chirp = read_mmwave_json(path)
+        elif isinstance(keys, dict) and "DCA1000Config" in keys:
+            lanes = read_cf_json(path)
+        else:
+            raise RfsdfError(f"{path}: neither an mmWave Studio *.mmwave.json (mmWaveDevices) nor a DCA1000 cf.json "
+                             "(DCA1000Config)")
+    if chirp is None:
+        raise RfsdfError("--config: a DCA1000 capture needs its mmWave Studio *.mmwave.json")
+    return chirp, lanes
+
+
+@main.command("import")
+@click.argument("capture", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
+@click.option("--format", "format_name", type=click.Choice(FORMATS), default="auto", show_default=True,
+              help="auto: by the name (.h5 hdf5, .bin dca1000).")
+@click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
+              help="dca1000: the mmWave Studio *.mmwave.json, and optionally the DCA1000 CLI's cf.json (lanes).")
+@click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): iwr1443.")
+@click.option("--poses", type=click.Path(path_type=Path), default=None,
+              help="dca1000: CSV of Tx0 positions, x_m,y_m,z_m a frame or time_s,x_m,y_m,z_m interpolated at the frames.")
+@click.option("--boresight", default="0,0,1", show_default=True, help="dca1000: the board's boresight X,Y,Z.")
+@click.option("--rx-axis", default="0,-1,0", show_default=True,
+              help="dca1000: the direction X,Y,Z from the board's Tx0 to its Rx.")
+@click.option("--range-delay", "range_delay_m", type=float, default=None,
+              help="dca1000: the board's fixed range delay [m] to undo (default: the chip's, 0.15 for TI).")
+@click.option("--conjugate/--no-conjugate", default=None,
+              help="Conjugate the IF (default: the chip's sign for dca1000, none for hdf5).")
+@one_line_errors
+def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, ...], chip: str | None,
+               poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
+               conjugate: bool | None):
+    """Convert a real capture into a measurements file: rfsdf's HDF5 layout, or a TI DCA1000
+    .bin with its mmWave Studio config, board and pose file (each frame a view; layouts in
+    docs/reference/formats.md)."""
+    from ..radar import import_fmcw, write_measurements
+
+    refuse_overwriting_inputs(out, capture, *configs, poses)
+    kind = _capture_format(capture, format_name)
+    if kind == "hdf5":
+        measurements = import_fmcw(capture, conjugate=bool(conjugate))
+    else:
+        from ..radar.boards import board
+        from ..radar.formats.ti_capture import CaptureGeometry, import_ti_capture
+
+        if chip is None or poses is None:
+            raise ValueError(f"{capture}: a DCA1000 capture needs --chip and --poses")
+        if range_delay_m is not None and not math.isfinite(range_delay_m):
+            raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
+        chirp, lanes = _ti_configs(configs)
+        geometry = CaptureGeometry(board(chip), _vector(boresight, "--boresight"), _vector(rx_axis, "--rx-axis"),
+                                   range_delay_m, conjugate)
+        measurements = import_ti_capture(capture, chirp, geometry, poses, lanes=lanes)
+    write_measurements(out, measurements)
+    v, t, r, k = measurements.acquisition.shape
+    f = measurements.acquisition.frequencies_hz
+    click.echo(f"{v} views of {t} Tx x {r} Rx, {k} samples over {float(f[0]) / 1e9:.3f}-{float(f[-1]) / 1e9:.3f} GHz")
+    click.echo(f"wrote {out}")
+
+
+@main.command("import-fmcw")
+@click.argument("capture", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True)
+@click.option("--conjugate", is_flag=True, help="Flip the IF phase sign (e.g. TI mmWave captures).")
+@one_line_errors
+def import_fmcw_cmd(capture: Path, out: Path, conjugate: bool):
+    """Convert a real FMCW capture (rfsdf's HDF5 layout: docs/reference/formats.md) into a
+    measurements file; the same as ``rfsdf import --format hdf5``."""
+    from ..radar import import_fmcw, write_measurements
+
+    refuse_overwriting_inputs(out, capture)
+    write_measurements(out, import_fmcw(capture, conjugate=conjugate))
+    click.echo(f"wrote {out}")

@@ -1,0 +1,279 @@
+"""TI captures: the DCA1000 .bin layouts byte for byte as TI documents them, mmWave Studio's and
+the DCA1000 CLI's JSON, pose files, the board's antennas, and a capture written from modelled
+data read back to the same measurements; every bad input one error line."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+import torch
+
+from rfsdf.errors import RfsdfError
+from rfsdf.radar.acquisition import SPEED_OF_LIGHT
+from rfsdf.radar.boards import board, board_positions
+from rfsdf.radar.formats.dca1000 import AdcLayout, read_bin, read_cf_json, write_bin, write_cf_json
+from rfsdf.radar.formats.mmwave_studio import ChirpConfig, read_mmwave_json, write_mmwave_json
+from rfsdf.radar.formats.poses import read_poses, write_poses
+from rfsdf.radar.formats.ti_capture import CaptureGeometry, import_ti_capture, write_ti_capture
+from rfsdf.radar.operator import SensingOperator
+
+# GeRaF's capture (IWR1443, one Tx, four Rx, one chirp a frame every 3 ms), with 16 samples
+CHIRP = ChirpConfig(start_hz=77e9, slope_hz_per_s=70.15e12, sample_rate_hz=10e6, samples=16, adc_start_s=6e-6,
+                    idle_s=7e-6, ramp_end_s=57.14e-6, rx_mask=0xF, tx_mask=0x1, complex=True, chirps_per_loop=1,
+                    loops=1, frames=0, frame_period_s=3e-3)
+
+
+def _int16(path, values):
+    np.asarray(values, dtype="<i2").tofile(path)
+
+
+def test_the_four_lane_complex_layout_interleaves_the_rx_of_each_time_sample(tmp_path):
+    """xWR14xx: each time sample is [I0 I1 I2 I3 Q0 Q1 Q2 Q3]; samples, then chirps."""
+    layout = AdcLayout(lanes=4, complex=True, rx=4, samples=2, chirps=2)
+    expected = np.zeros((1, 2, 4, 2), complex)
+    values = []
+    for chirp in range(2):
+        for n in range(2):
+            i = [100 * chirp + 10 * n + k for k in range(4)]
+            q = [-(100 * chirp + 10 * n + k) - 1 for k in range(4)]
+            values += i + q
+            expected[0, chirp, :, n] = np.array(i) + 1j * np.array(q)
+    _int16(tmp_path / "a.bin", values)
+    assert np.array_equal(read_bin(tmp_path / "a.bin", layout), expected)
+
+
+def test_the_two_lane_complex_layout_pairs_samples_of_each_rx_in_turn(tmp_path):
+    """xWR16xx/18xx/68xx: each chirp holds Rx0's samples, then Rx1's, as [I(n) I(n+1) Q(n) Q(n+1)]."""
+    layout = AdcLayout(lanes=2, complex=True, rx=2, samples=4, chirps=1)
+    values = [1, 2, -1, -2, 3, 4, -3, -4,  # Rx0: samples 0, 1 then 2, 3
+              5, 6, -5, -6, 7, 8, -7, -8]  # Rx1
+    _int16(tmp_path / "a.bin", values)
+    expected = np.array([[1 - 1j, 2 - 2j, 3 - 3j, 4 - 4j], [5 - 5j, 6 - 6j, 7 - 7j, 8 - 8j]])
+    assert np.array_equal(read_bin(tmp_path / "a.bin", layout)[0, 0], expected)
+
+
+def test_real_layouts_store_one_value_a_sample(tmp_path):
+    _int16(tmp_path / "four.bin", [0, 1, 2, 3, 10, 11, 12, 13])  # two time samples of four lanes
+    four = read_bin(tmp_path / "four.bin", AdcLayout(lanes=4, complex=False, rx=4, samples=2, chirps=1))
+    assert np.array_equal(four[0, 0], [[0, 10], [1, 11], [2, 12], [3, 13]])
+    _int16(tmp_path / "two.bin", [0, 1, 2, 10, 11, 12])  # Rx0's three samples, then Rx1's
+    two = read_bin(tmp_path / "two.bin", AdcLayout(lanes=2, complex=False, rx=2, samples=3, chirps=1))
+    assert np.array_equal(two[0, 0], [[0, 1, 2], [10, 11, 12]]) and two.dtype == np.float32
+
+
+@pytest.mark.parametrize("lanes, complex_", [(4, True), (4, False), (2, True), (2, False)])
+def test_every_layout_reads_back_what_it_wrote(tmp_path, lanes, complex_):
+    layout = AdcLayout(lanes=lanes, complex=complex_, rx=4, samples=8, chirps=3)
+    rng = np.random.default_rng(0)
+    cube = rng.integers(-32768, 32768, (5, 3, 4, 8)).astype(float)
+    if complex_:
+        cube = cube + 1j * rng.integers(-32768, 32768, cube.shape)
+    write_bin(tmp_path / "a.bin", cube, layout)
+    assert (tmp_path / "a.bin").stat().st_size == cube.size * (4 if complex_ else 2)
+    assert np.array_equal(read_bin(tmp_path / "a.bin", layout), cube)
+
+
+def test_a_bin_that_is_not_whole_frames_or_a_bad_layout_is_one_line(tmp_path):
+    layout = AdcLayout(lanes=2, complex=True, rx=4, samples=8, chirps=1)
+    _int16(tmp_path / "a.bin", np.zeros(4 * 8 * 2 + 2))
+    with pytest.raises(RfsdfError, match=r"a\.bin: size 132 bytes is not a whole number of frames of 128 bytes"):
+        read_bin(tmp_path / "a.bin", layout)
+    with pytest.raises(RfsdfError, match="cannot read"):
+        read_bin(tmp_path / "missing.bin", layout)
+    for bad in ({"lanes": 3}, {"lanes": 4, "rx": 2}, {"samples": 7}):
+        with pytest.raises(ValueError):
+            AdcLayout(**{"lanes": 2, "complex": True, "rx": 4, "samples": 8, "chirps": 1, **bad})
+    with pytest.raises(ValueError, match="int16 range"):
+        write_bin(tmp_path / "b.bin", np.full((1, 1, 4, 8), 40_000 + 0j), layout)
+    assert not (tmp_path / "b.bin").exists()
+
+
+def test_the_mmwave_json_gives_the_chirp_and_each_sample_its_frequency(tmp_path):
+    write_mmwave_json(tmp_path / "a.mmwave.json", CHIRP)
+    chirp = read_mmwave_json(tmp_path / "a.mmwave.json")
+    for name in CHIRP.__dataclass_fields__:
+        assert getattr(chirp, name) == pytest.approx(getattr(CHIRP, name), rel=1e-12), name
+    f = chirp.frequencies_hz()  # the first sample at f0 + S t_adc, then S / f_s apart
+    assert f[0] == pytest.approx(77e9 + 70.15e12 * 6e-6) and np.diff(f) == pytest.approx(70.15e12 / 10e6)
+    assert (chirp.rx, chirp.chirps) == (4, 1)
+    document = json.loads((tmp_path / "a.mmwave.json").read_text())
+    document["mmWaveDevices"] = document["mmWaveDevices"][0]  # some versions write one device as an object
+    (tmp_path / "b.mmwave.json").write_text(json.dumps(document))
+    assert read_mmwave_json(tmp_path / "b.mmwave.json") == chirp
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda rf: rf["rlProfiles"][0]["rlProfileCfg_t"].pop("numAdcSamples"),
+     r"mmWaveDevices\[0\]\.rfConfig\.rlProfiles\[0\]\.rlProfileCfg_t\.numAdcSamples: missing"),
+    (lambda rf: rf["rlProfiles"][0]["rlProfileCfg_t"].update(digOutSampleRate="fast"), "digOutSampleRate: 'fast' is not"),
+    (lambda rf: rf["rlProfiles"][0]["rlProfileCfg_t"].update(freqSlopeConst_MHz_usec=0), "must be > 0"),
+    (lambda rf: rf["rlAdcOutCfg_t"]["fmt"].update(b2AdcBits=1), "b2AdcBits: 1; only 16-bit"),
+    (lambda rf: rf["rlFrameCfg_t"].update(chirpStartIdx=2), "chirpEndIdx: 0 is before chirpStartIdx 2"),
+])
+def test_a_bad_mmwave_json_names_its_field(tmp_path, edit, message):
+    write_mmwave_json(tmp_path / "a.mmwave.json", CHIRP)
+    document = json.loads((tmp_path / "a.mmwave.json").read_text())
+    edit(document["mmWaveDevices"][0]["rfConfig"])
+    (tmp_path / "a.mmwave.json").write_text(json.dumps(document))
+    with pytest.raises(RfsdfError, match=message):
+        read_mmwave_json(tmp_path / "a.mmwave.json")
+    (tmp_path / "b.json").write_text("{not json")
+    with pytest.raises(RfsdfError, match="b.json: not JSON"):
+        read_mmwave_json(tmp_path / "b.json")
+
+
+def test_the_dca1000_cli_config_gives_the_lanes(tmp_path):
+    for lanes in (2, 4):
+        assert read_cf_json(write_cf_json(tmp_path / f"cf{lanes}.json", lanes)) == lanes
+    (tmp_path / "bad.json").write_text(json.dumps({"DCA1000Config": {"lvdsMode": 2, "dataFormatMode": 1}}))
+    with pytest.raises(RfsdfError, match="dataFormatMode: 1; only 16-bit"):
+        read_cf_json(tmp_path / "bad.json")
+    (tmp_path / "none.json").write_text(json.dumps({"DCA1000Config": {"dataFormatMode": 3}}))
+    with pytest.raises(RfsdfError, match="DCA1000Config.lvdsMode: missing"):
+        read_cf_json(tmp_path / "none.json")
+
+
+def test_poses_per_frame_or_by_time_interpolated_at_the_frames(tmp_path):
+    positions = np.column_stack([np.linspace(0, 0.1, 6), np.zeros(6), np.full(6, -0.2)])
+    write_poses(tmp_path / "p.csv", positions)
+    assert np.array_equal(read_poses(tmp_path / "p.csv", 4), positions[:4])
+    # an arm's log every 10 ms, moving 1 m/s along x; frames every 3 ms
+    times = 5.0 + np.arange(6) * 0.01
+    write_poses(tmp_path / "t.csv", np.column_stack([times - 5.0, np.ones(6), np.zeros(6)]), times)
+    frames = read_poses(tmp_path / "t.csv", 17, frame_period_s=3e-3)
+    assert frames[:, 0] == pytest.approx(np.arange(17) * 3e-3) and (frames[:, 1] == 1).all()
+
+
+@pytest.mark.parametrize("text, frames, message", [
+    ("x_m,y_m,z_m\n0,0,0\n", 2, "1 poses for 2 frames: the pose file is shorter"),
+    ("time_s,x_m,y_m,z_m\n0,0,0,0\n0.01,0,0,0\n", 5, "the poses end at 0.01 s, the 5 frames at 0.012 s"),
+    ("x_m,y_m,z_m\n0,0,0\nnan,0,0\n", 2, "row 3: NaN or Inf"),
+    ("x_m,y_m\n0,0\n", 1, "header: no column z_m"),
+    ("x_m,y_m,z_m\n0,zero,0\n", 1, "row 2: expected numbers"),
+])
+def test_a_bad_pose_file_is_one_line(tmp_path, text, frames, message):
+    (tmp_path / "p.csv").write_text(text)
+    with pytest.raises(RfsdfError, match=message):
+        read_poses(tmp_path / "p.csv", frames, frame_period_s=3e-3)
+
+
+def test_the_iwr1443_rx_lie_on_a_line_from_its_tx():
+    """Rx k at 5 mm + (3 - k) lambda/2 from Tx0 (79 GHz) along the Rx axis, whichever way it points."""
+    iwr1443 = board("IWR1443")
+    half = SPEED_OF_LIGHT / 79e9 / 2
+    tx0 = np.array([[0.1, 0.2, 0.3]])
+    tx, rx = board_positions(iwr1443, tx0, np.array([0, 0, 1.0]), np.array([1.0, 0, 0.5]), tx_mask=0b111)
+    assert rx[0] - tx0 == pytest.approx(np.array([[0.005 + (3 - k) * half, 0, 0] for k in range(4)]))
+    assert tx[0, 2] - tx0[0] == pytest.approx([-4 * half, 0, 0]) and abs(tx[0, 1, 1] - 0.2) == pytest.approx(half)
+    with pytest.raises(RfsdfError, match="unknown chip 'awr9999'; known: iwr1443"):
+        board("awr9999")
+    with pytest.raises(RfsdfError, match="txChannelEn: 0x8 enables antennas the iwr1443 lacks"):
+        board_positions(iwr1443, tx0, np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), tx_mask=0x8)
+
+
+def _scan(rows=3, cols=4, step=0.97e-3):
+    """A raster of Tx0 positions 0.2 m in front of the origin (GeRaF's lambda/4 steps)."""
+    x, y = np.meshgrid(np.arange(cols) * step, np.arange(rows) * step, indexing="xy")
+    return np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -0.2)])
+
+
+def test_a_written_capture_imports_as_the_measurements_it_came_from(tmp_path):
+    geometry = CaptureGeometry(board("iwr1443"))
+    write_poses(tmp_path / "poses.csv", _scan())
+    acquisition = geometry.acquisition(CHIRP, _scan())
+    points = torch.tensor([[0.0, 0.0, 0.0], [0.01, -0.02, 0.03]], dtype=torch.float64)
+    data = SensingOperator(acquisition).forward(points, torch.tensor([1.0, 0.5j], dtype=torch.complex128))
+    from rfsdf.radar.acquisition import Measurements
+
+    scale = write_ti_capture(tmp_path, Measurements(acquisition, data), CHIRP, geometry)
+    back = import_ti_capture(tmp_path / "adc_data.bin", read_mmwave_json(tmp_path / "capture.mmwave.json"),
+                             geometry, tmp_path / "poses.csv", lanes=read_cf_json(tmp_path / "cf.json"))
+    assert torch.equal(back.acquisition.tx_m, acquisition.tx_m) and torch.equal(back.acquisition.rx_m, acquisition.rx_m)
+    # in counts: within the int16 rounding, half a count in I and in Q
+    assert (back.data.to(torch.complex128) - data * scale).abs().max() <= 0.5 * 2 ** 0.5 + 1e-2
+
+
+def test_a_ti_if_signal_imports_as_the_operators_model(tmp_path):
+    """A point target's dechirped IF written the way a TI board records it, exp(+j 2 pi f (d_tx +
+    d_rx + 0.15 m) / c) / (d_tx d_rx), independently of rfsdf's writer: imported, it is the
+    operator's model of the same target up to one real scale."""
+    geometry = CaptureGeometry(board("iwr1443"), boresight=(0, 0, 1), rx_axis=(0, -1, 0))
+    tx0 = _scan()
+    tx, rx = board_positions(geometry.board, tx0, np.array([0, 0, 1.0]), np.array([0, -1.0, 0]))
+    target = np.array([0.004, -0.003, 0.01])
+    d_tx, d_rx = np.linalg.norm(tx - target, axis=2), np.linalg.norm(rx - target, axis=2)  # (M, 1), (M, 4)
+    path = (d_tx[:, :, None] + d_rx[:, None, :])[..., None] + 0.15  # (M, 1, 4, 1)
+    f = CHIRP.frequencies_hz()
+    raw = np.exp(2j * np.pi * f * path / SPEED_OF_LIGHT) / (d_tx[:, :, None] * d_rx[:, None, :])[..., None]
+    write_bin(tmp_path / "adc.bin", raw * 3e4 / np.abs(raw).max(), AdcLayout(4, True, 4, CHIRP.samples, 1))
+    write_poses(tmp_path / "poses.csv", tx0)
+    imported = import_ti_capture(tmp_path / "adc.bin", CHIRP, geometry, tmp_path / "poses.csv").data.to(torch.complex128)
+    model = SensingOperator(geometry.acquisition(CHIRP, tx0)).forward(
+        torch.from_numpy(target[None]), torch.ones(1, dtype=torch.complex128))
+    ratio = (imported / model).flatten()
+    scale = ratio.abs().mean()
+    assert float((ratio - scale).abs().max() / scale) < 1e-3  # one real, positive scale for every sample
+
+
+def test_a_real_sampled_capture_is_refused_on_import(tmp_path):
+    real = ChirpConfig(**{**CHIRP.__dict__, "complex": False})
+    write_bin(tmp_path / "a.bin", np.zeros((1, 1, 4, 16)), AdcLayout(4, False, 4, 16, 1))
+    with pytest.raises(RfsdfError, match="real-sampled capture"):
+        import_ti_capture(tmp_path / "a.bin", real, CaptureGeometry(board("iwr1443")), tmp_path / "none.csv")
+
+
+def _written_capture(folder):
+    """A capture of two point targets written as an IWR1443 and a DCA1000 record it, with its pose file."""
+    from rfsdf.radar.acquisition import Measurements
+
+    geometry = CaptureGeometry(board("iwr1443"))
+    acquisition = geometry.acquisition(CHIRP, _scan())
+    points = torch.tensor([[0.0, 0.0, 0.0], [0.01, -0.02, 0.03]], dtype=torch.float64)
+    data = SensingOperator(acquisition).forward(points, torch.tensor([1.0, 0.5j], dtype=torch.complex128))
+    write_ti_capture(folder, Measurements(acquisition, data), CHIRP, geometry)
+    write_poses(folder / "poses.csv", _scan())
+    return import_ti_capture(folder / "adc_data.bin", CHIRP, geometry, folder / "poses.csv")
+
+
+def test_rfsdf_import_reads_a_dca1000_capture(tmp_path):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.radar import read_measurements
+
+    expected = _written_capture(tmp_path)
+    args = ["import", str(tmp_path / "adc_data.bin"), "--config", str(tmp_path / "capture.mmwave.json"),
+            "--config", str(tmp_path / "cf.json"), "--chip", "iwr1443", "--poses", str(tmp_path / "poses.csv"),
+            "--out", str(tmp_path / "data.h5")]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert "12 views of 1 Tx x 4 Rx, 16 samples over 77.421-77.526 GHz" in result.output
+    imported = read_measurements(tmp_path / "data.h5")
+    assert torch.equal(imported.data, expected.data) and torch.equal(imported.acquisition.rx_m, expected.acquisition.rx_m)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda a, d: a.remove("--chip") or a.remove("iwr1443"), "needs --chip and --poses"),
+    (lambda a, d: a.__setitem__(a.index("iwr1443"), "awr9999"), "--chip: unknown chip 'awr9999'"),
+    (lambda a, d: (d / "adc_data.bin").write_bytes((d / "adc_data.bin").read_bytes()[:-2]),
+     "adc_data.bin: size .* is not a whole number of frames"),
+    (lambda a, d: (d / "poses.csv").write_text("x_m,y_m,z_m\n0,0,0\n"), "poses.csv: 1 poses for 12 frames"),
+    (lambda a, d: (d / "cf.json").write_text('{"other": 1}'), "cf.json: neither an mmWave Studio"),
+    (lambda a, d: a.__setitem__(a.index("0,-1,0"), "0,0,2"), "--rx-axis: must not be parallel to --boresight"),
+    (lambda a, d: a.__setitem__(a.index("0,-1,0"), "0,nan,1"), "--rx-axis: expected three finite numbers"),
+])
+def test_rfsdf_import_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, change, message):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+
+    _written_capture(tmp_path)
+    args = ["import", str(tmp_path / "adc_data.bin"), "--config", str(tmp_path / "capture.mmwave.json"),
+            "--config", str(tmp_path / "cf.json"), "--chip", "iwr1443", "--poses", str(tmp_path / "poses.csv"),
+            "--rx-axis", "0,-1,0", "--out", str(tmp_path / "data.h5")]
+    change(args, tmp_path)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+    assert re.search(message, result.output), result.output
+    assert not (tmp_path / "data.h5").exists()
