@@ -91,15 +91,24 @@ class Result:
 
 
 class TrueMaterials:
-    """Points -> class index of the nearest object's material (``Problem.known_materials``)."""
+    """Points -> class index of the nearest object's material (``Problem.known_materials``).
+
+    The renderer asks for the same surface candidates every step until it refreshes them,
+    so the answer for the last tensor asked about is kept (``Scene.object_index`` over a
+    demo's 10^5 facets takes seconds)."""
 
     def __init__(self, scene):
         self.scene = scene
         self.classes = [MATERIAL_CLASSES.index(o.material.name) for o in scene.objects]
+        self._asked: torch.Tensor | None = None
+        self._answer: torch.Tensor | None = None
 
     def __call__(self, points: torch.Tensor) -> torch.Tensor:
-        with torch.no_grad():
-            return torch.tensor(self.classes, device=points.device)[self.scene.object_index(points).to(points.device)]
+        if points is not self._asked:
+            with torch.no_grad():
+                index = self.scene.object_index(points).to(points.device)
+                self._asked, self._answer = points, torch.tensor(self.classes, device=points.device)[index]
+        return self._answer
 
 
 def smooth_displacement(scene, correlation_m: float, generator: torch.Generator):
