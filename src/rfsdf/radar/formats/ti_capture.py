@@ -54,10 +54,10 @@ class CaptureGeometry:
         return Acquisition(torch.from_numpy(tx), torch.from_numpy(rx), torch.from_numpy(chirp.frequencies_hz()),
                            torch.from_numpy(bore), 0.0, True)
 
-    def _delay(self, frequencies_hz: torch.Tensor) -> torch.Tensor:
-        """exp(-j 2 pi f d / c) (K,): the board's fixed delay as a phase."""
-        return torch.polar(torch.ones_like(frequencies_hz), -2 * torch.pi * frequencies_hz * self.delay_m
-                           / SPEED_OF_LIGHT).to(torch.complex128)
+
+def _delay_phase(frequencies_hz: torch.Tensor, delay_m: float) -> torch.Tensor:
+    """exp(-j 2 pi f d / c) (K,): a fixed extra path ``delay_m`` as a phase."""
+    return torch.polar(torch.ones_like(frequencies_hz), -2 * torch.pi * frequencies_hz * delay_m / SPEED_OF_LIGHT)
 
 
 def _layout(chirp: ChirpConfig, lanes: int) -> AdcLayout:
@@ -80,7 +80,7 @@ def import_ti_capture(bin_path, chirp: ChirpConfig, geometry: CaptureGeometry, p
     cube = cube.reshape(frames, chirp.loops, chirp.chirps_per_loop, chirp.rx, chirp.samples).mean(1)
     acquisition = geometry.acquisition(chirp, read_poses(poses, frames, chirp.frame_period_s))
     data = torch.from_numpy(np.conj(cube) if geometry.flip else cube).to(torch.complex128)
-    data = data * geometry._delay(acquisition.frequencies_hz).conj()
+    data = data * _delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
     return Measurements(acquisition, data, None, {"source": str(bin_path), "chip": geometry.board.name,
                                                   "poses": str(poses)})
 
@@ -93,7 +93,7 @@ def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geo
     frequencies = measurements.acquisition.frequencies_hz
     if chirp.loops != 1 or not np.allclose(chirp.frequencies_hz(), frequencies.numpy(), rtol=0, atol=1.0):
         raise ValueError("chirp must have one loop and the measurements' frequencies")
-    data = measurements.data.to(torch.complex128) * geometry._delay(frequencies)
+    data = measurements.data.to(torch.complex128) * _delay_phase(frequencies, geometry.delay_m)
     cube = (data.conj() if geometry.flip else data).resolve_conj().numpy()
     scale = FULL_SCALE / max(np.abs(cube.real).max(), np.abs(cube.imag).max(), np.finfo(float).tiny)
     folder = Path(folder)
