@@ -5,9 +5,10 @@ the same voxels and data, in one run: seconds of each, their ratio and the relat
 The set-up is GeRaF's at a reduced size: an IWR1443 (one Tx, four Rx 5 mm + (3 - k) lambda/2
 from it) on a raster at lambda/4 steps, 0.2 m in front of three point targets, the first
 --frequencies ADC samples of a 77 GHz chirp, the image on the raster's lattice over
---depths depths 0.17-0.23 m.
+--depths depths 0.17-0.23 m. The exact adjoint holds every position's distance to every
+voxel: at 48 positions a side, 64 frequencies and 16 depths it ran out of 24 GiB.
 
-Usage: python benchmarks/scan_imaging.py [--positions 48] [--frequencies 64] [--depths 16]
+Usage: python benchmarks/scan_imaging.py [--positions 32] [--frequencies 32] [--depths 8]
        [--device cpu|cuda] [--out benchmarks/results/scan-imaging.json]
 """
 
@@ -30,9 +31,9 @@ from rfsdf.radar.scan_imaging import PlanarScan, scan_image, scan_voxels
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--positions", type=int, default=48, help="raster positions per edge")
-    parser.add_argument("--frequencies", type=int, default=64)
-    parser.add_argument("--depths", type=int, default=16)
+    parser.add_argument("--positions", type=int, default=32, help="raster positions per edge")
+    parser.add_argument("--frequencies", type=int, default=32)
+    parser.add_argument("--depths", type=int, default=8)
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/scan-imaging.json"))
     args = parser.parse_args()
