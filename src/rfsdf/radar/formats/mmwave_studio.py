@@ -18,6 +18,7 @@ import numpy as np
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ..waveform import fmcw_frequencies
 
 __all__ = ["ChirpConfig", "read_mmwave_json", "write_mmwave_json"]
 
@@ -55,7 +56,8 @@ class ChirpConfig:
 
     def frequencies_hz(self) -> np.ndarray:
         """(samples,) [Hz]: the instantaneous frequency of each ADC sample, f0 + S (t_adc + n / f_s)."""
-        return self.start_hz + self.slope_hz_per_s * (self.adc_start_s + np.arange(self.samples) / self.sample_rate_hz)
+        return fmcw_frequencies(self.start_hz + self.slope_hz_per_s * self.adc_start_s, self.slope_hz_per_s,
+                                self.sample_rate_hz, self.samples)
 
 
 # (JSON field, ChirpConfig field, scale to SI)
