@@ -277,3 +277,39 @@ def test_rfsdf_import_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path,
     assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
     assert re.search(message, result.output), result.output
     assert not (tmp_path / "data.h5").exists()
+
+
+def test_an_mmwave_json_written_by_hand_as_mmwave_studio_lays_it_out_is_read(tmp_path):
+    """Not through rfsdf's writer: mmWave Studio's field names and units, hex masks as strings,
+    two profiles (the first is read), three chirps a loop."""
+    document = {"mmWaveDevices": [{"mmWaveDeviceId": 0, "rfConfig": {
+        "rlChanCfg_t": {"rxChannelEn": "0xF", "txChannelEn": "0x7", "cascading": 0},
+        "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": 2, "b8FullScaleReducFctr": 0, "b2AdcOutFmt": 1}},
+        "rlProfiles": [{"rlProfileCfg_t": {"profileId": 0, "startFreqConst_GHz": 77.0, "idleTimeConst_usec": 100.0,
+                                           "adcStartTimeConst_usec": 6.0, "rampEndTime_usec": 60.0,
+                                           "freqSlopeConst_MHz_usec": 70.295, "numAdcSamples": 256,
+                                           "digOutSampleRate": 5000.0, "rxGain_dB": "0x1E"}},
+                       {"rlProfileCfg_t": {"profileId": 1, "startFreqConst_GHz": 60.0}}],
+        "rlFrameCfg_t": {"chirpStartIdx": 0, "chirpEndIdx": 2, "numLoops": 16, "numFrames": 8,
+                         "framePeriodicity_msec": 40.0}}}]}
+    (tmp_path / "studio.mmwave.json").write_text(json.dumps(document))
+    chirp = read_mmwave_json(tmp_path / "studio.mmwave.json")
+    assert (chirp.samples, chirp.rx, chirp.chirps_per_loop, chirp.loops, chirp.chirps, chirp.frames) == (256, 4, 3, 16, 48, 8)
+    assert (chirp.rx_mask, chirp.tx_mask, chirp.complex) == (0xF, 0x7, True)
+    assert chirp.slope_hz_per_s == pytest.approx(70.295e12) and chirp.sample_rate_hz == pytest.approx(5e6)
+    assert chirp.frame_period_s == pytest.approx(0.04) and chirp.idle_s == pytest.approx(100e-6)
+    assert chirp.frequencies_hz()[0] == pytest.approx(77e9 + 70.295e12 * 6e-6)
+    assert chirp.frequencies_hz()[-1] == pytest.approx(77e9 + 70.295e12 * (6e-6 + 255 / 5e6))
+
+
+def test_a_cf_json_and_pose_files_written_by_hand_are_read(tmp_path):
+    (tmp_path / "cf.json").write_text(json.dumps({"DCA1000Config": {
+        "dataLoggingMode": "raw", "dataTransferMode": "LVDSCapture", "dataCaptureMode": "ethernetStream",
+        "lvdsMode": 1, "dataFormatMode": 3, "packetDelay_us": 25,
+        "ethernetConfig": {"DCA1000IPAddress": "192.168.33.180", "DCA1000ConfigPort": 4096, "DCA1000DataPort": 4098}}}))
+    assert read_cf_json(tmp_path / "cf.json") == 4
+    (tmp_path / "frames.csv").write_text("z_m, x_m, y_m\n0.5,0.1,0.2\n0.5,0.2,0.2\n")  # columns in any order
+    assert np.array_equal(read_poses(tmp_path / "frames.csv", 2), [[0.1, 0.2, 0.5], [0.2, 0.2, 0.5]])
+    (tmp_path / "arm.csv").write_text("time_s,x_m,y_m,z_m\n10.0,0,0,0\n10.1,0.1,0,0.2\n")
+    frames = read_poses(tmp_path / "arm.csv", 3, frame_period_s=0.05)
+    assert frames == pytest.approx(np.array([[0, 0, 0], [0.05, 0, 0.1], [0.1, 0, 0.2]]))
