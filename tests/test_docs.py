@@ -33,6 +33,7 @@ OUTPUTS = {
     "own-scene.md": ["shelf-slices.png", "shelf-demo/metrics.json", "shelf-demo/report.html"],
     "room.md": ["corner-demo/metrics.json", "corner-fit/primitive.json", "corner-fit/fitted-scene.toml"],
     "sweep.md": ["seeds/summary.csv", "seeds/summary.png"],
+    "ti-capture.md": ["capture/adc_data.bin", "data.h5", "image.h5", "image.mip.png", "run/mesh.ply"],
 }
 
 

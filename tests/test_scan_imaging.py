@@ -1,15 +1,21 @@
 """Coherent imaging of a planar scan by FFT convolution: the exact operator's adjoint (to float
 precision), and a point target imaged to the closed-form resolutions, cross-range
-0.886 lambda R / (2 D) and range 0.886 c / (2 B)."""
+0.886 lambda R / (2 D) and range 0.886 c / (2 B); views that are one board's positions found
+to be a raster and imaged as one coherent view, by the library and by `rfsdf image`."""
 
 import numpy as np
 import pytest
 import torch
 
-from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Acquisition
+from click.testing import CliRunner
+
+from rfsdf.cli import main
+from rfsdf.geometry import Grid
+from rfsdf.radar import write_measurements
+from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from rfsdf.radar.boards import board, board_positions
 from rfsdf.radar.operator import SensingOperator
-from rfsdf.radar.scan_imaging import PlanarScan, scan_image, scan_voxels
+from rfsdf.radar.scan_imaging import PlanarScan, planar_scan, scan_image, scan_matched_filter, scan_voxels
 
 
 def _scan(shape, step, tx, rx, frequencies, depth=0.2):
@@ -74,3 +80,72 @@ def test_a_scan_refuses_what_it_cannot_image():
             PlanarScan(**{**ok, **bad})
     with pytest.raises(ValueError, match=r"data must be \(nx, ny, P, K\)"):
         scan_image(PlanarScan(**ok), torch.zeros(4, 4, 2, 1, dtype=torch.complex64), (0, 0), (4, 4), np.array([0.1]))
+
+
+def _serpentine_views(nx=12, nz=10, step=2e-3, jitter=0.0, drop=0):
+    """An IWR1443 scanned serpentine-wise over an x-z raster at y = -0.2 m, looking along +y,
+    stepping along -x first; one view per position (as `rfsdf import` makes them)."""
+    a, b = np.meshgrid(np.arange(nx), np.arange(nz), indexing="ij")
+    b = np.where(a % 2 == 1, nz - 1 - b, b)
+    positions = np.stack([0.01 - a.ravel() * step, np.full(a.size, -0.2), -0.01 + b.ravel() * step], 1)
+    positions = positions[drop:] + jitter * np.random.default_rng(0).standard_normal((a.size - drop, 3))
+    tx, rx = board_positions(board("iwr1443"), positions, np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
+    boresight = torch.tensor([[0, 1.0, 0]]).repeat(len(positions), 1)
+    return Acquisition(torch.from_numpy(tx), torch.from_numpy(rx), torch.linspace(77e9, 81e9, 16, dtype=torch.float64),
+                       boresight, pattern_exponent=1.0)
+
+
+def test_views_on_a_raster_are_imaged_as_one_coherent_view_exactly():
+    acquisition = _serpentine_views()
+    scan, index = planar_scan(acquisition)
+    assert scan.shape == (10, 12) and scan.steps_m == pytest.approx((2e-3, 2e-3))
+    assert np.allclose(scan.axis_z, [0, 1, 0])  # facing the boresight
+    assert sorted(map(tuple, index)) == [(i, j) for i in range(10) for j in range(12)]
+    operator = SensingOperator(acquisition)
+    targets = torch.tensor([[0.0, 0.0, 0.0], [0.004, 0.01, -0.003]], dtype=torch.float64)
+    y = operator.forward(targets, torch.tensor([1.0, 0.5j], dtype=torch.complex128))
+    image = scan_matched_filter(Measurements(acquisition, y.to(torch.complex64)),
+                                Grid((-0.01, -0.02, -0.01), (0.012, 0.02, 0.01), (11, 8, 10)))
+    assert image.per_view.shape[0] == 1 and image.grid.voxel_m[[0, 2]] == pytest.approx([2e-3, 2e-3])
+    points = image.grid.points(dtype=torch.float64)
+    exact = (operator.adjoint(y, points) / operator.column_norms_sq(points)).reshape(image.grid.shape)
+    assert float((image.per_view[0].to(torch.complex128) - exact).norm() / exact.norm()) < 1e-6
+    assert float((image.column_norms_sq[0].double() - operator.column_norms_sq(points).reshape(image.grid.shape)).abs().max()
+                 / operator.column_norms_sq(points).max()) < 1e-6
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"drop": 1}, "do not fill a 10 x 12 raster: 1 missing"),
+    ({"jitter": 5e-4}, "mm off"),
+])
+def test_views_that_are_not_a_raster_are_refused_with_the_reason(change, message):
+    with pytest.raises(ValueError, match=message):
+        planar_scan(_serpentine_views(**change))
+
+
+def test_views_of_different_boards_are_not_a_scan():
+    acquisition = _serpentine_views()
+    rx = acquisition.rx_m.clone()
+    rx[3, 0, 0] += 1e-3
+    moved = Acquisition(acquisition.tx_m, rx, acquisition.frequencies_hz, acquisition.boresight)
+    with pytest.raises(ValueError, match="not one board moved"):
+        planar_scan(moved)
+
+
+def test_rfsdf_image_images_a_scan_coherently_and_refuses_scan_imaging_of_other_views(tmp_path):
+    acquisition = _serpentine_views()
+    y = SensingOperator(acquisition).forward(torch.zeros(1, 3, dtype=torch.float64), torch.ones(1, dtype=torch.complex128))
+    write_measurements(tmp_path / "scan.h5", Measurements(acquisition, y.to(torch.complex64)))
+    bounds = "--bounds=-0.01,-0.02,-0.01,0.012,0.02,0.01"
+    run = CliRunner().invoke(main, ["image", str(tmp_path / "scan.h5"), "--out", str(tmp_path / "image.h5"), bounds])
+    assert run.exit_code == 0, run.output
+    assert "10 x 12 raster scan" in run.output and (tmp_path / "image.mip.png").exists()
+    several = _serpentine_views(nx=3, nz=1, step=0.05)
+    tilted = Acquisition(several.tx_m, several.rx_m, several.frequencies_hz,
+                         torch.tensor([[0, 1.0, 0], [0.6, 0.8, 0], [0, 0.8, 0.6]], dtype=torch.float64))
+    y = torch.zeros(tilted.shape, dtype=torch.complex64)
+    write_measurements(tmp_path / "views.h5", Measurements(tilted, y))
+    run = CliRunner().invoke(main, ["image", str(tmp_path / "views.h5"), "--out", str(tmp_path / "v.h5"), bounds,
+                                    "--method", "scan"])
+    assert run.exit_code == 2 and run.output.strip().splitlines() == [
+        "error: --method scan: the views are not one board moved: their boresights differ"]

@@ -42,20 +42,39 @@ def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: 
 
 def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_png: Path, method: str, device):
     from ..geometry import Grid
-    from ..radar import matched_filter, write_image
+    from ..radar import matched_filter
     from ..radar.imaging import imaging_method, require_image_memory
-    from ..viz import plot_mip
+    from ..radar.scan_imaging import planar_scan, scan_matched_filter
 
     grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
+    count = f"({measurements.acquisition.num_measurements} measurements)"
+    if method in ("auto", "scan"):
+        try:
+            scan, _ = planar_scan(measurements.acquisition)
+        except ValueError as exc:
+            if method == "scan":
+                raise ValueError(f"--method scan: {exc}") from None
+        else:
+            click.echo(f"matched filter of a {scan.shape[0]} x {scan.shape[1]} raster scan "
+                       f"({scan.steps_m[0] * 1e3:.3g} x {scan.steps_m[1] * 1e3:.3g} mm steps) {count} as one coherent "
+                       f"view, by FFT on the raster's lattice, {voxel_m * 1e3:.2f} mm deep, on {device}")
+            image = scan_matched_filter(measurements, grid, device=device)
+            return _write_image(image, out_image, out_png, "matched-filter power (the scan, coherent)")
     require_image_memory(measurements.acquisition.shape[0], grid)
     chosen = imaging_method(measurements.acquisition, method, device)
     why = {"fast": "range-profile back-projection", "exact": "the sensing operator's adjoint"}[chosen]
-    click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm "
-               f"({measurements.acquisition.num_measurements} measurements): {chosen} ({why}"
+    click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm {count}: {chosen} ({why}"
                f"{', chosen by --method auto' if method == 'auto' else ''}) on {device}")
     image = matched_filter(measurements, grid, method=chosen, device=device, progress=True)
+    return _write_image(image, out_image, out_png, "matched-filter power (mean over views)")
+
+
+def _write_image(image, out_image: Path, out_png: Path, title: str):
+    from ..radar import write_image
+    from ..viz import plot_mip
+
     write_image(out_image, image)
-    plot_mip(image.power().numpy(), grid.lower_m, grid.upper_m, out_png, title="matched-filter power (mean over views)")
+    plot_mip(image.power().numpy(), image.grid.lower_m, image.grid.upper_m, out_png, title=title)
     click.echo(f"wrote {out_image} and {out_png}")
     return image
 
@@ -112,8 +131,10 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
 @click.option("--voxel", "voxel_m", type=POSITIVE, default=None, help="Voxel size [m] (default: box extent / 64).")
 @click.option("--bounds", default=None, help=BOUNDS_HELP)
 @click.option("--scene", "scene_name", default=None, help="Scene whose bounds to image.")
-@click.option("--method", type=click.Choice(["auto", "exact", "fast"]), default="auto", show_default=True,
-              help="exact adjoint, or fast range-profile back-projection (auto: fast from 32 frequencies, on a CPU).")
+@click.option("--method", type=click.Choice(["auto", "exact", "fast", "scan"]), default="auto", show_default=True,
+              help="exact adjoint, fast range-profile back-projection, or scan: views that are one board's positions "
+                   "on a planar raster imaged as one coherent view by FFT, on the raster's lattice (auto: scan where "
+                   "the views form a raster, else fast from 32 frequencies on a CPU, else exact).")
 @device_option()
 @one_line_errors
 def image_cmd(data: Path, out: Path, voxel_m: float | None, bounds: str | None, scene_name: str | None, method: str,

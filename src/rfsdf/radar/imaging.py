@@ -19,7 +19,7 @@ from .fast_imaging import DEFAULT_OVERSAMPLING, fast_adjoint
 from .operator import SensingOperator
 
 __all__ = ["IMAGING_METHODS", "FAST_MIN_FREQUENCIES", "imaging_method", "Image", "require_image_memory",
-           "matched_filter", "point_spread", "half_power_width"]
+           "matched_filter", "point_spread", "half_power_width", "safe_divide"]
 
 IMAGING_METHODS = ("auto", "exact", "fast")
 # The exact adjoint costs K vectorised complex multiply-adds per pair and voxel (GEMMs), the
@@ -63,7 +63,7 @@ class Image:
 
     def coherent(self) -> torch.Tensor:
         """(nx, ny, nz) complex64: the design's c_hat with all views in one A (0 where unseen)."""
-        return _safe_divide((self.per_view * self.column_norms_sq).sum(0), self.column_norms_sq.sum(0))
+        return safe_divide((self.per_view * self.column_norms_sq).sum(0), self.column_norms_sq.sum(0))
 
     def power(self, *, coherent: bool = False) -> torch.Tensor:
         """(nx, ny, nz) float32: |coherent c_hat|^2, or the mean over views of |c_hat_v|^2."""
@@ -92,10 +92,10 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
             numerator = op.adjoint(measurements.data.to(device), points, per_view=True, progress=progress)
         norms = op.column_norms_sq(points, per_view=True)
     shape = (measurements.acquisition.shape[0], *grid.shape)
-    return Image(grid, _safe_divide(numerator, norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
+    return Image(grid, safe_divide(numerator, norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
 
 
-def _safe_divide(numerator: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
+def safe_divide(numerator: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
     """numerator / norms, and 0 for voxels no antenna sees (||A_q|| = 0)."""
     seen = norms > 0
     return torch.where(seen, numerator / torch.where(seen, norms, torch.ones_like(norms)), torch.zeros_like(numerator))

@@ -11,9 +11,14 @@ frequencies, is a 2-D convolution per depth, done by FFT:
     w = m dx e_x + n dy e_y + z e_z,
 
 with T_p, R_p the pair's offsets from the position and e_z = e_x x e_y. It is the exact
-operator's adjoint (spreading included, an isotropic pattern), not a stationary-phase
+operator's adjoint (spreading and the antenna pattern included), not a stationary-phase
 approximation as the range-migration (omega-k) algorithm is; it costs O(P K Z L log L) for L
 lateral samples against O(P K Z L N) for back-projection over N positions.
+
+Measurements whose views are the positions of one board (each view a frame, as ``rfsdf
+import`` makes them) are such a scan when the positions fill a planar raster:
+:func:`planar_scan` finds it, and :func:`scan_matched_filter` images the whole scan as one
+coherent view on the raster's lattice.
 """
 
 from __future__ import annotations
@@ -24,9 +29,12 @@ import numpy as np
 import torch
 from scipy import fft as scipy_fft
 
-from .acquisition import SPEED_OF_LIGHT
+from ..geometry import Grid
+from ..limits import require_memory
+from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
+from .imaging import Image, safe_divide
 
-__all__ = ["PlanarScan", "scan_image", "scan_voxels"]
+__all__ = ["PlanarScan", "planar_scan", "scan_image", "scan_column_norms", "scan_voxels", "scan_matched_filter"]
 
 _KERNEL_BYTES = 1 << 27  # kernels built at once, per chunk of frequencies
 
@@ -37,7 +45,9 @@ class PlanarScan:
 
     origin_m, axis_x, axis_y : (3,) [m], orthonormal axes. steps_m : (dx, dy) [m].
     shape : (nx, ny) positions. tx_offsets_m, rx_offsets_m : (P, 3) [m], each pair's Tx and
-    Rx relative to the position. frequencies_hz : (K,).
+    Rx relative to the position. frequencies_hz : (K,). boresight : (3,) unit vector of the
+    antennas' cos^n pattern, ``pattern_exponent`` n (0: isotropic); ``spreading``: the
+    1 / (d_tx d_rx) factor, as :class:`~rfsdf.radar.Acquisition`'s.
     """
 
     origin_m: np.ndarray
@@ -48,6 +58,9 @@ class PlanarScan:
     tx_offsets_m: np.ndarray
     rx_offsets_m: np.ndarray
     frequencies_hz: np.ndarray
+    boresight: np.ndarray | None = None
+    pattern_exponent: float = 0.0
+    spreading: bool = True
 
     def __post_init__(self):
         ex, ey = np.asarray(self.axis_x, float), np.asarray(self.axis_y, float)
@@ -57,6 +70,8 @@ class PlanarScan:
             raise ValueError("tx_offsets_m and rx_offsets_m must both be (P, 3)")
         if min(self.shape) < 1 or min(self.steps_m) <= 0:
             raise ValueError(f"shape must be >= 1 and steps_m > 0, got {self.shape}, {self.steps_m}")
+        if self.pattern_exponent > 0 and self.boresight is None:
+            raise ValueError("a pattern_exponent > 0 needs the boresight")
 
     @property
     def axis_z(self) -> np.ndarray:
@@ -80,6 +95,37 @@ def scan_voxels(scan: PlanarScan, first: tuple[int, int], count: tuple[int, int]
             + jj[..., None] * scan.steps_m[1] * np.asarray(scan.axis_y, float) + zz[..., None] * scan.axis_z)
 
 
+def _convolved(scan: PlanarScan, shape: tuple[int, int], first: tuple[int, int], count: tuple[int, int],
+               depths_m: np.ndarray, device: torch.device, spectrum) -> torch.Tensor:
+    """(nxi, nyi, Z) complex128: sum over pairs p of IFFT2[``spectrum``(p, amplitude, path)] at each
+    depth, cropped to the linear convolution's samples of the voxels ``first`` .. ``first + count``.
+    ``spectrum`` gets the pair's kernel amplitude and path length (lx, ly) [m] on the lattice
+    offsets laid out so that the circular convolution over the (lx, ly) FFT is the linear one
+    over the ``shape`` (nx, ny) positions."""
+    nx, ny = shape
+    lx, ly = (scipy_fft.next_fast_len(n + c - 1) for n, c in zip(shape, count))
+    m = first[0] - (nx - 1) + np.arange(lx)
+    n = first[1] - (ny - 1) + np.arange(ly)
+    lateral = (m[:, None, None] * scan.steps_m[0] * np.asarray(scan.axis_x, float)
+               + n[None, :, None] * scan.steps_m[1] * np.asarray(scan.axis_y, float))  # (lx, ly, 3)
+    boresight = None if scan.boresight is None else torch.as_tensor(np.asarray(scan.boresight, float), device=device)
+    image = torch.zeros(count[0], count[1], len(depths_m), dtype=torch.complex128, device=device)
+    for z_index, depth in enumerate(np.asarray(depths_m, float)):
+        w = torch.from_numpy(lateral + depth * scan.axis_z).to(device)
+        total = torch.zeros(lx, ly, dtype=torch.complex128, device=device)
+        for p in range(len(scan.tx_offsets_m)):
+            rel = [w - torch.as_tensor(np.asarray(offsets[p], float), device=device)
+                   for offsets in (scan.tx_offsets_m, scan.rx_offsets_m)]
+            d_tx, d_rx = (torch.linalg.vector_norm(r, dim=-1) for r in rel)
+            amplitude = 1.0 / (d_tx * d_rx) if scan.spreading else torch.ones_like(d_tx)
+            if scan.pattern_exponent > 0:
+                cos = [((r @ boresight) / d).clamp(min=0) for r, d in zip(rel, (d_tx, d_rx))]
+                amplitude = amplitude * (cos[0] * cos[1]) ** scan.pattern_exponent
+            total += spectrum(p, amplitude, d_tx + d_rx)
+        image[:, :, z_index] = torch.fft.ifft2(total)[nx - 1:nx - 1 + count[0], ny - 1:ny - 1 + count[1]]
+    return image
+
+
 def scan_image(scan: PlanarScan, data: torch.Tensor, first: tuple[int, int], count: tuple[int, int],
                depths_m: np.ndarray, *, device=None) -> torch.Tensor:
     """A^H y of the whole scan on :func:`scan_voxels` (``first``, ``count``, ``depths_m``):
@@ -94,25 +140,157 @@ def scan_image(scan: PlanarScan, data: torch.Tensor, first: tuple[int, int], cou
     y = torch.zeros(p_total, k_total, lx, ly, dtype=torch.complex128, device=device)
     y[:, :, :nx, :ny] = data.to(device, torch.complex128).permute(2, 3, 0, 1)
     spectra = torch.fft.fft2(y)  # (P, K, lx, ly)
-    # the kernel's lateral offsets m = i - a, from first - (n - 1), laid out so that the
-    # circular convolution's samples n - 1 .. n + count - 2 are the linear one's
-    m = first[0] - (nx - 1) + np.arange(lx)
-    n = first[1] - (ny - 1) + np.arange(ly)
-    lateral = (m[:, None, None] * scan.steps_m[0] * np.asarray(scan.axis_x, float)
-               + n[None, :, None] * scan.steps_m[1] * np.asarray(scan.axis_y, float))  # (lx, ly, 3)
     wavenumbers = torch.from_numpy(2 * np.pi * np.asarray(scan.frequencies_hz, float) / SPEED_OF_LIGHT).to(device)
     chunk = max(1, _KERNEL_BYTES // (16 * lx * ly))
-    image = torch.zeros(count[0], count[1], len(depths_m), dtype=torch.complex128, device=device)
-    for z_index, depth in enumerate(np.asarray(depths_m, float)):
-        w = torch.from_numpy(lateral + depth * scan.axis_z).to(device)
+
+    def spectrum(p, amplitude, path):
         total = torch.zeros(lx, ly, dtype=torch.complex128, device=device)
-        for p in range(p_total):
-            d_tx, d_rx = (torch.linalg.vector_norm(w - torch.as_tensor(np.asarray(offsets[p], float), device=device),
-                                                   dim=-1) for offsets in (scan.tx_offsets_m, scan.rx_offsets_m))
-            path, spread = d_tx + d_rx, 1.0 / (d_tx * d_rx)
-            for start in range(0, k_total, chunk):
-                k = wavenumbers[start:start + chunk, None, None]
-                kernel = torch.polar(spread.expand(len(k), -1, -1), k * path)
-                total += (spectra[p, start:start + chunk] * torch.fft.fft2(kernel)).sum(0)
-        image[:, :, z_index] = torch.fft.ifft2(total)[nx - 1:nx - 1 + count[0], ny - 1:ny - 1 + count[1]]
-    return image.cpu()
+        for start in range(0, k_total, chunk):
+            kernel = torch.polar(amplitude.expand(len(wavenumbers[start:start + chunk]), -1, -1),
+                                 wavenumbers[start:start + chunk, None, None] * path)
+            total += (spectra[p, start:start + chunk] * torch.fft.fft2(kernel)).sum(0)
+        return total
+
+    return _convolved(scan, scan.shape, first, count, depths_m, device, spectrum).cpu()
+
+
+def scan_column_norms(scan: PlanarScan, first: tuple[int, int], count: tuple[int, int], depths_m: np.ndarray, *,
+                      device=None) -> torch.Tensor:
+    """||A_q||^2 of the whole scan at :func:`scan_voxels`: (nxi, nyi, Z) float64 on the CPU, the
+    sum over positions, pairs and frequencies of the kernel's squared amplitude (a convolution
+    of the raster's indicator with it)."""
+    device = torch.device(device or "cpu")
+    lx, ly = (scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count))
+    indicator = torch.zeros(lx, ly, dtype=torch.complex128, device=device)
+    indicator[:scan.shape[0], :scan.shape[1]] = len(scan.frequencies_hz)
+    raster = torch.fft.fft2(indicator)
+    norms = _convolved(scan, scan.shape, first, count, depths_m, device,
+                       lambda p, amplitude, path: raster * torch.fft.fft2(amplitude.to(torch.complex128) ** 2))
+    return norms.real.clamp(min=0).cpu()
+
+
+def _clusters(values: np.ndarray, tolerance: float) -> np.ndarray:
+    """Sorted centres of the groups of ``values`` (N,) that lie within ``tolerance`` of a neighbour."""
+    ordered = np.sort(values)
+    breaks = np.flatnonzero(np.diff(ordered) > tolerance) + 1
+    return np.array([group.mean() for group in np.split(ordered, breaks)])
+
+
+def _lattice(coordinates: np.ndarray, tolerance: float, axis: str) -> tuple[np.ndarray, float]:
+    """Integer indices (N,) of ``coordinates`` (N,) [m] on a regular lattice, and its step [m]."""
+    centres = _clusters(coordinates, tolerance)
+    if len(centres) == 1:
+        return np.zeros(len(coordinates), int), 1.0
+    step = float(np.median(np.diff(centres)))
+    index = np.round((coordinates - centres[0]) / step).astype(int)
+    off = np.abs(coordinates - centres[0] - index * step).max()
+    if off > tolerance:
+        raise ValueError(f"the positions along the raster's {axis} axis are not {step * 1e3:.3g} mm apart: "
+                         f"one is {off * 1e3:.3g} mm off the lattice")
+    return index, step
+
+
+def planar_scan(acquisition: Acquisition, *, tolerance: float = 0.1) -> tuple[PlanarScan, np.ndarray]:
+    """The planar raster whose positions are the views of ``acquisition``, and each view's
+    position index (V, 2) on it.
+
+    Every view must be the same board (Tx and Rx at the same offsets from its first Tx, the
+    same boresight) at a position of a full raster: a lattice of two orthogonal axes in a
+    plane, each position once, in any order (raster, serpentine), within ``tolerance`` of a
+    step of the lattice. e_x is the direction to the nearest neighbour of the first view's
+    position, e_z = e_x x e_y faces the boresight. ValueError, naming what is not a scan,
+    otherwise.
+    """
+    tx, rx = acquisition.tx_m.numpy(), acquisition.rx_m.numpy()
+    positions = tx[:, 0]
+    if len(positions) < 2:
+        raise ValueError("a scan needs at least two views (positions)")
+    tx_offsets, rx_offsets = tx - positions[:, None], rx - positions[:, None]
+    spread = max(np.abs(tx_offsets - tx_offsets[0]).max(), np.abs(rx_offsets - rx_offsets[0]).max())
+    if spread > 1e-6:
+        raise ValueError(f"the views are not one board moved: its antennas' offsets differ by up to {spread * 1e3:.3g} mm")
+    boresight = acquisition.boresight.numpy()
+    if np.abs(boresight - boresight[0]).max() > 1e-6:
+        raise ValueError("the views are not one board moved: their boresights differ")
+    relative = positions - positions[0]
+    distance = np.linalg.norm(relative, axis=1)
+    distance[0] = np.inf
+    nearest = float(distance.min())
+    if nearest < 1e-9:
+        raise ValueError("two views share a position; a scan has each position once")
+    axis_x = relative[int(np.argmin(distance))] / nearest
+    centred = positions - positions.mean(0)
+    _, singular, vt = np.linalg.svd(centred, full_matrices=False)
+    across = centred - np.outer(centred @ axis_x, axis_x)
+    normal = vt[2] if np.linalg.norm(across, axis=1).max() > tolerance * nearest else boresight[0]
+    axis_y = np.cross(normal, axis_x)
+    if np.linalg.norm(axis_y) < 1e-6:
+        raise ValueError("the scan's line runs along the boresight; a raster lies across it")
+    axis_y /= np.linalg.norm(axis_y)
+    if np.cross(axis_x, axis_y) @ boresight[0] < 0:
+        axis_y = -axis_y
+    out_of_plane = np.abs(relative @ np.cross(axis_x, axis_y)).max()
+    if out_of_plane > tolerance * nearest:
+        raise ValueError(f"the positions are not in one plane: one is {out_of_plane * 1e3:.3g} mm off it")
+    ix, step_x = _lattice(relative @ axis_x, tolerance * nearest, "x")
+    iy, step_y = _lattice(relative @ axis_y, tolerance * nearest, "y")
+    ix, iy = ix - ix.min(), iy - iy.min()
+    shape = (int(ix.max()) + 1, int(iy.max()) + 1)
+    filled = np.zeros(shape, int)
+    np.add.at(filled, (ix, iy), 1)
+    if (filled != 1).any():
+        raise ValueError(f"the positions do not fill a {shape[0]} x {shape[1]} raster: {int((filled == 0).sum())} "
+                         f"missing, {int((filled > 1).sum())} taken twice")
+    origin = positions[0] + (ix.min() - ix[0]) * step_x * axis_x + (iy.min() - iy[0]) * step_y * axis_y
+    t, r = tx.shape[1], rx.shape[1]
+    scan = PlanarScan(origin, axis_x, axis_y, (step_x, step_y), shape, np.repeat(tx_offsets[0], r, 0),
+                      np.tile(rx_offsets[0], (t, 1)), acquisition.frequencies_hz.numpy(), boresight[0],
+                      acquisition.pattern_exponent, acquisition.spreading)
+    return scan, np.stack([ix, iy], 1)
+
+
+def _scene_axis(direction: np.ndarray, name: str) -> int:
+    """The scene axis (0, 1, 2) that ``direction`` (3,) runs along (either way)."""
+    axis = int(np.argmax(np.abs(direction)))
+    if abs(direction[axis]) < 1 - 1e-6:
+        raise ValueError(f"the raster's {name} axis {np.round(direction, 4).tolist()} is not along a scene axis; "
+                         "scan imaging images on the raster's lattice in the scene frame")
+    return axis
+
+
+def scan_matched_filter(measurements: Measurements, grid: Grid, *, device=None) -> Image:
+    """The matched filter of a scan (:func:`planar_scan`) as one coherent view, on the raster's
+    lattice: the voxels of ``grid``'s box at the raster's steps across it and at ``grid``'s
+    voxels along its normal. The raster's axes must run along scene axes. Returns an
+    :class:`~rfsdf.radar.imaging.Image` with one view on that lattice grid."""
+    scan, index = planar_scan(measurements.acquisition)
+    axes = [_scene_axis(scan.axis_x, "x"), _scene_axis(scan.axis_y, "y"), _scene_axis(scan.axis_z, "normal")]
+    lower, upper = np.asarray(grid.lower_m, float), np.asarray(grid.upper_m, float)
+    first, count, lattice = [], [], []
+    for direction, step, axis in zip((scan.axis_x, scan.axis_y), scan.steps_m, axes):
+        sign = np.sign(direction[axis])
+        ends = sorted(((lower[axis] - scan.origin_m[axis]) * sign / step, (upper[axis] - scan.origin_m[axis]) * sign / step))
+        start, stop = int(np.ceil(ends[0])), int(np.floor(ends[1]))
+        if stop < start:
+            raise ValueError(f"the box holds no lattice point of the raster along scene axis {'xyz'[axis]}")
+        first.append(start), count.append(stop - start + 1)
+        lattice.append(scan.origin_m[axis] + sign * step * np.arange(start, stop + 1))
+    depth_axis = axes[2]
+    centres = grid.axes()[depth_axis]
+    depths = (centres - scan.origin_m[depth_axis]) / scan.axis_z[depth_axis]
+    pairs, frequencies = len(scan.tx_offsets_m), len(scan.frequencies_hz)
+    padded = np.prod([scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count)])
+    require_memory(16 * pairs * frequencies * (int(np.prod(scan.shape)) + 2 * int(padded)),
+                   f"the spectra of a {scan.shape[0]} x {scan.shape[1]} scan ({pairs} pairs, {frequencies} frequencies)")
+    data = torch.zeros(*scan.shape, pairs, frequencies, dtype=torch.complex128)
+    data[index[:, 0], index[:, 1]] = measurements.data.reshape(len(index), -1, data.shape[-1]).to(torch.complex128)
+    numerator = scan_image(scan, data, tuple(first), tuple(count), depths, device=device)
+    norms = scan_column_norms(scan, tuple(first), tuple(count), depths, device=device)
+    order = tuple(int(d) for d in np.argsort(axes))  # the lattice's (x, y, normal) dimensions in scene order
+    backwards = [axis for direction, axis in zip((scan.axis_x, scan.axis_y), axes) if direction[axis] < 0]
+    numerator, norms = (t.permute(*order).flip(backwards) for t in (numerator, norms))
+    out_lower, out_upper, shape = lower.copy(), upper.copy(), list(grid.shape)
+    for values, step, axis in zip(lattice, scan.steps_m, axes):
+        out_lower[axis], out_upper[axis], shape[axis] = values.min() - step / 2, values.max() + step / 2, len(values)
+    out = Grid(tuple(out_lower), tuple(out_upper), tuple(shape))
+    return Image(out, safe_divide(numerator, norms).to(torch.complex64)[None], norms.to(torch.float32)[None])
