@@ -144,6 +144,12 @@ def test_on_range_sidelobes_marks_a_weak_copy_on_a_bright_glints_line_of_sight()
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.5)], [above]).any()  # brighter than a sidelobe
     side_view = blob(0, 0.0375, 0.1)  # seen from +x with nothing in its way
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.1), side_view], [above, [1.0, 0.0, 0.0375]]).any()
+    # a copy 18 cm (4.8 range resolutions) behind the glint is beyond the default reach of four, not beyond ten
+    far = np.stack([blob(0, 0.09, 1.0) + blob(0, -0.09, 0.1)]) ** 2
+    near_far = (np.abs(x) < 0.007) & (np.abs(y) < 0.007) & (np.abs(z + 0.09) < 0.007)
+    rule = dict(threshold=0.01, local_threshold=0.5, window_m=0.03)
+    assert not on_range_sidelobes(far, np.array([above]), freqs, grid, **rule)[near_far].any()
+    assert on_range_sidelobes(far, np.array([above]), freqs, grid, reach=10.0, **rule)[near_far].all()
 
 
 def test_specular_normals_are_the_power_weighted_mean_bisector():

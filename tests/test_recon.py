@@ -473,6 +473,34 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
     assert ReconConfig().init.blank_range_sidelobes and ReconConfig().init.carve_front
 
 
+def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(sphere_data, tmp_path, monkeypatch):
+    """``[init] sidelobes_in_mf`` with the CLEAN method: what is a range sidelobe (within
+    ``sidelobe_reach``) in the matched filter's per-view images is left out too."""
+    import rfsdf.recon.trainer as trainer_module
+    from rfsdf.radar import matched_filter
+    from rfsdf.radar.clean import clean_image
+    from rfsdf.radar.detection import on_range_sidelobes
+
+    _, data = sphere_data
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
+    grid = _grid(10)
+    clean = clean_image(data, grid)
+    frequencies, centres = data.acquisition.frequencies_hz.numpy(), data.acquisition.tx_m.mean(1).numpy()
+    mf = (matched_filter(data, grid).per_view.abs() ** 2).numpy()
+    for in_mf in (False, True):
+        settings = _config(steps=2).model_dump()
+        settings["init"].update(method="clean", carve_front=False, threshold=0.05, sidelobe_reach=6.0,
+                                sidelobes_in_mf=in_mf)
+        trainer = Trainer(Problem(data, grid, clean=clean), ReconConfig.model_validate(settings), tmp_path / f"{in_mf}")
+        trainer.warm_start()
+        rule = {"threshold": 0.05, "local_threshold": 0.5, "window_m": 0.03, "reach": 6.0}
+        expected = on_range_sidelobes(clean.per_view_power.numpy(), centres, frequencies, grid, **rule)
+        if in_mf:
+            expected |= on_range_sidelobes(mf, centres, frequencies, grid, **rule)
+        np.testing.assert_array_equal(seen["exclude"], expected)
+
+
 def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):
     _, data = sphere_data
     trainer = Trainer(Problem(data, _grid(10)), _config(steps=6, geometry_delay=0.5), tmp_path / "run")

@@ -23,7 +23,7 @@ from .waveform import range_sidelobes
 __all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges",
            "on_range_sidelobes"]
 
-SIDELOBE_REACH = 4.0  # on_range_sidelobes looks this many range resolutions along each line of sight
+SIDELOBE_REACH = 4.0  # on_range_sidelobes' default: this many range resolutions along each line of sight
 SIDELOBE_TUBE_VOXELS = 3  # ... within a tube of this many voxels across it
 
 
@@ -87,7 +87,8 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
 
 
 def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, frequencies_hz, grid, *,
-                       threshold: float, local_threshold: float, window_m: float) -> np.ndarray:
+                       threshold: float, local_threshold: float, window_m: float,
+                       reach: float = SIDELOBE_REACH) -> np.ndarray:
     """(nx, ny, nz) bool: detected voxels that no view shows as more than a range sidelobe.
 
     A bright glint leaves, in the view that sees it, weak copies along that view's line of
@@ -95,7 +96,7 @@ def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, f
     what CLEAN's on-grid point model leaves of them): small detections a few centimetres off
     the objects. A voxel of view v's own detection (as in :func:`in_front_of_ridges`) is a
     sidelobe in v when a voxel on its line of sight to v's array, between half a range
-    resolution and ``SIDELOBE_REACH`` of them away (within a tube of ``SIDELOBE_TUBE_VOXELS``),
+    resolution and ``reach`` of them away (within a tube of ``SIDELOBE_TUBE_VOXELS``),
     is brighter than it by more than 1 / (the waveform's peak range sidelobe,
     :func:`~rfsdf.radar.waveform.range_sidelobes`: 0.22 for 16 uniform frequencies). Marked
     are the voxels that are a sidelobe in some view and genuine in none, so a weak surface
@@ -107,7 +108,7 @@ def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, f
     if not np.isfinite(null_m):
         return np.zeros(grid.shape, bool)
     points = grid.points().double().numpy()
-    offsets = np.arange(0.5 * null_m, SIDELOBE_REACH * null_m, 0.5 * float(np.max(grid.voxel_m)))
+    offsets = np.arange(0.5 * null_m, reach * null_m, 0.5 * float(np.max(grid.voxel_m)))
     sidelobe, genuine = np.zeros(grid.size, bool), np.zeros(grid.size, bool)
     for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, points, threshold=threshold,
                                                     local_threshold=local_threshold, window_m=window_m):

@@ -69,6 +69,15 @@ class InitConfig(StrictModel):
     # glint on its line of sight (radar.detection.on_range_sidelobes): the floaters a few
     # centimetres off the objects (docs/results/quality-history.md, "Range-sidelobe blanking")
     blank_range_sidelobes: bool = True
+    # how far along each view's line of sight a brighter glint is looked for [range resolutions]:
+    # 8 (30 cm at 4 GHz) reaches the demo's floaters 4-24 cm off their glint (4: observed
+    # Chamfer 4.89 mm, 8: 4.30), and left the tabletop's warm start unchanged
+    # (docs/results/demo-quality.md, "The floaters are far range sidelobes")
+    sidelobe_reach: PositiveFloat = 8.0
+    # with method "clean": also blank what is a sidelobe in the matched-filter per-view images,
+    # not only in CLEAN's (CLEAN keeps a far sidelobe as a component of its own). Demo 4.30 ->
+    # 3.16 mm, but tabletop 4.29 -> 4.58 (real faces dropped), so off by default
+    sidelobes_in_mf: bool = False
     # turn the faces the views see towards the power-weighted mean bisector of those views
     # (radar.specular.specular_normals): the detection's boundary has the blur's shape, not
     # the surface's, and its normals on the seen faces were 42 degrees off (12 with 0.01;

@@ -28,7 +28,7 @@ from ..errors import RfsdfError
 from ..field import RadarField, levels_for
 from ..geometry import Grid
 from ..progress import progress_bar
-from ..radar import Measurements
+from ..radar import Measurements, matched_filter
 from ..radar.clean import CleanResult, clean_image
 from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
@@ -220,7 +220,11 @@ class Trainer:
         per_view = (clean.per_view_power if clean is not None else (self.observed**2).reshape(-1, *grid.shape))
         per_view = per_view.cpu().numpy()
         acquisition = self.problem.measurements.acquisition
-        exclude = excluded_voxels(ic, per_view, acquisition, grid, threshold)
+        matched = None
+        if clean is not None and ic.sidelobes_in_mf:  # every Tx and Rx, as CLEAN's own images
+            image = matched_filter(self.problem.measurements, grid, device=self.device)
+            matched = (image.per_view.abs() ** 2).numpy()
+        exclude = excluded_voxels(ic, per_view, acquisition, grid, threshold, matched_filter_power=matched)
         normals = None
         if ic.normal_weight > 0:
             normals = specular_normals(per_view, acquisition.tx_m.mean(1).cpu().numpy(),

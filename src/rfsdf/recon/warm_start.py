@@ -51,18 +51,25 @@ def detection_threshold(setting: float | str, clean=None) -> float:
     return clean.residual_floor()
 
 
-def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, threshold: float) -> np.ndarray:
+def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, threshold: float, *,
+                    matched_filter_power: np.ndarray | None = None) -> np.ndarray:
     """(nx, ny, nz) bool: the voxels the ``[init]`` settings ``init`` take out of the detection:
     in front of a view's range ridge (``carve_front``) and range sidelobes
-    (``blank_range_sidelobes``), from the per-view image power (V, nx, ny, nz) of the
-    :class:`~rfsdf.radar.Acquisition` ``acquisition`` at the global ``threshold``."""
+    (``blank_range_sidelobes``, within ``sidelobe_reach`` range resolutions), from the
+    per-view image power (V, nx, ny, nz) of the :class:`~rfsdf.radar.Acquisition`
+    ``acquisition`` at the global ``threshold``. With ``matched_filter_power`` (V, nx, ny, nz),
+    the per-view matched-filter power beside a CLEAN image's, what is a sidelobe in either
+    image is blanked (``sidelobes_in_mf``)."""
     centres = acquisition.tx_m.mean(1).cpu().numpy()
     rule = {"threshold": threshold, "local_threshold": init.local_threshold, "window_m": init.window_m}
     exclude = np.zeros(grid.shape, bool)
     if init.carve_front:
         exclude |= in_front_of_ridges(per_view_power, centres, grid, **rule)
     if init.blank_range_sidelobes:
-        exclude |= on_range_sidelobes(per_view_power, centres, acquisition.frequencies_hz.cpu().numpy(), grid, **rule)
+        frequencies = acquisition.frequencies_hz.cpu().numpy()
+        images = [per_view_power] + ([matched_filter_power] if matched_filter_power is not None else [])
+        for power in images:
+            exclude |= on_range_sidelobes(power, centres, frequencies, grid, reach=init.sidelobe_reach, **rule)
     return exclude
 
 
