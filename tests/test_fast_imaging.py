@@ -74,12 +74,13 @@ def test_imaging_method_auto_and_unknown_names(small_acquisition):
 
 def test_the_cli_offers_exactly_the_imaging_methods():
     """The CLI lists the names itself (importing the imaging module would load torch on every
-    command's start): the two lists must not drift apart."""
+    command's start): the two lists must not drift apart. "scan" is the command's own: views
+    that form a raster imaged as one (rfsdf.radar.scan_imaging)."""
     from rfsdf.cli import image_cmd
     from rfsdf.radar.imaging import IMAGING_METHODS
 
     method = next(p for p in image_cmd.params if p.name == "method")
-    assert tuple(method.type.choices) == IMAGING_METHODS
+    assert tuple(method.type.choices) == (*IMAGING_METHODS, "scan")
 
 
 def test_range_profile_of_one_point_peaks_at_its_path_length():
