@@ -50,15 +50,16 @@ def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_
     count = f"({measurements.acquisition.num_measurements} measurements)"
     if method in ("auto", "scan"):
         try:
-            scan, _ = planar_scan(measurements.acquisition)
+            raster = planar_scan(measurements.acquisition)
         except ValueError as exc:
             if method == "scan":
                 raise ValueError(f"--method scan: {exc}") from None
         else:
+            scan = raster[0]
             click.echo(f"matched filter of a {scan.shape[0]} x {scan.shape[1]} raster scan "
                        f"({scan.steps_m[0] * 1e3:.3g} x {scan.steps_m[1] * 1e3:.3g} mm steps) {count} as one coherent "
                        f"view, by FFT on the raster's lattice, {voxel_m * 1e3:.2f} mm deep, on {device}")
-            image = scan_matched_filter(measurements, grid, device=device)
+            image = scan_matched_filter(measurements, grid, raster=raster, device=device)
             return _write_image(image, out_image, out_png, "matched-filter power (the scan, coherent)")
     require_image_memory(measurements.acquisition.shape[0], grid)
     chosen = imaging_method(measurements.acquisition, method, device)

@@ -95,15 +95,21 @@ def scan_voxels(scan: PlanarScan, first: tuple[int, int], count: tuple[int, int]
             + jj[..., None] * scan.steps_m[1] * np.asarray(scan.axis_y, float) + zz[..., None] * scan.axis_z)
 
 
-def _convolved(scan: PlanarScan, shape: tuple[int, int], first: tuple[int, int], count: tuple[int, int],
-               depths_m: np.ndarray, device: torch.device, spectrum) -> torch.Tensor:
+def _fft_shape(scan: PlanarScan, count: tuple[int, int]) -> tuple[int, int]:
+    """(lx, ly): the FFT size at which the circular convolution of the scan's positions with
+    ``count`` voxels' kernel offsets is the linear one."""
+    return tuple(scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count))
+
+
+def _convolved(scan: PlanarScan, first: tuple[int, int], count: tuple[int, int], depths_m: np.ndarray,
+               device: torch.device, spectrum) -> torch.Tensor:
     """(nxi, nyi, Z) complex128: sum over pairs p of IFFT2[``spectrum``(p, amplitude, path)] at each
     depth, cropped to the linear convolution's samples of the voxels ``first`` .. ``first + count``.
     ``spectrum`` gets the pair's kernel amplitude and path length (lx, ly) [m] on the lattice
     offsets laid out so that the circular convolution over the (lx, ly) FFT is the linear one
-    over the ``shape`` (nx, ny) positions."""
-    nx, ny = shape
-    lx, ly = (scipy_fft.next_fast_len(n + c - 1) for n, c in zip(shape, count))
+    over the scan's (nx, ny) positions."""
+    nx, ny = scan.shape
+    lx, ly = _fft_shape(scan, count)
     m = first[0] - (nx - 1) + np.arange(lx)
     n = first[1] - (ny - 1) + np.arange(ly)
     lateral = (m[:, None, None] * scan.steps_m[0] * np.asarray(scan.axis_x, float)
@@ -135,7 +141,7 @@ def scan_image(scan: PlanarScan, data: torch.Tensor, first: tuple[int, int], cou
     p_total, k_total = len(scan.tx_offsets_m), len(scan.frequencies_hz)
     if tuple(data.shape) != (nx, ny, p_total, k_total):
         raise ValueError(f"data must be (nx, ny, P, K) = {(nx, ny, p_total, k_total)}, got {tuple(data.shape)}")
-    lx, ly = (scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count))
+    lx, ly = _fft_shape(scan, count)
     device = torch.device(device or "cpu")
     y = torch.zeros(p_total, k_total, lx, ly, dtype=torch.complex128, device=device)
     y[:, :, :nx, :ny] = data.to(device, torch.complex128).permute(2, 3, 0, 1)
@@ -151,7 +157,7 @@ def scan_image(scan: PlanarScan, data: torch.Tensor, first: tuple[int, int], cou
             total += (spectra[p, start:start + chunk] * torch.fft.fft2(kernel)).sum(0)
         return total
 
-    return _convolved(scan, scan.shape, first, count, depths_m, device, spectrum).cpu()
+    return _convolved(scan, first, count, depths_m, device, spectrum).cpu()
 
 
 def scan_column_norms(scan: PlanarScan, first: tuple[int, int], count: tuple[int, int], depths_m: np.ndarray, *,
@@ -160,11 +166,11 @@ def scan_column_norms(scan: PlanarScan, first: tuple[int, int], count: tuple[int
     sum over positions, pairs and frequencies of the kernel's squared amplitude (a convolution
     of the raster's indicator with it)."""
     device = torch.device(device or "cpu")
-    lx, ly = (scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count))
+    lx, ly = _fft_shape(scan, count)
     indicator = torch.zeros(lx, ly, dtype=torch.complex128, device=device)
     indicator[:scan.shape[0], :scan.shape[1]] = len(scan.frequencies_hz)
     raster = torch.fft.fft2(indicator)
-    norms = _convolved(scan, scan.shape, first, count, depths_m, device,
+    norms = _convolved(scan, first, count, depths_m, device,
                        lambda p, amplitude, path: raster * torch.fft.fft2(amplitude.to(torch.complex128) ** 2))
     return norms.real.clamp(min=0).cpu()
 
@@ -220,7 +226,7 @@ def planar_scan(acquisition: Acquisition, *, tolerance: float = 0.1) -> tuple[Pl
         raise ValueError("two views share a position; a scan has each position once")
     axis_x = relative[int(np.argmin(distance))] / nearest
     centred = positions - positions.mean(0)
-    _, singular, vt = np.linalg.svd(centred, full_matrices=False)
+    vt = np.linalg.svd(centred, full_matrices=False)[2]
     across = centred - np.outer(centred @ axis_x, axis_x)
     normal = vt[2] if np.linalg.norm(across, axis=1).max() > tolerance * nearest else boresight[0]
     axis_y = np.cross(normal, axis_x)
@@ -258,12 +264,13 @@ def _scene_axis(direction: np.ndarray, name: str) -> int:
     return axis
 
 
-def scan_matched_filter(measurements: Measurements, grid: Grid, *, device=None) -> Image:
+def scan_matched_filter(measurements: Measurements, grid: Grid, *, raster=None, device=None) -> Image:
     """The matched filter of a scan (:func:`planar_scan`) as one coherent view, on the raster's
     lattice: the voxels of ``grid``'s box at the raster's steps across it and at ``grid``'s
-    voxels along its normal. The raster's axes must run along scene axes. Returns an
+    voxels along its normal. The raster's axes must run along scene axes. ``raster``:
+    :func:`planar_scan`'s answer for these measurements, when the caller has it. Returns an
     :class:`~rfsdf.radar.imaging.Image` with one view on that lattice grid."""
-    scan, index = planar_scan(measurements.acquisition)
+    scan, index = raster or planar_scan(measurements.acquisition)
     axes = [_scene_axis(scan.axis_x, "x"), _scene_axis(scan.axis_y, "y"), _scene_axis(scan.axis_z, "normal")]
     lower, upper = np.asarray(grid.lower_m, float), np.asarray(grid.upper_m, float)
     first, count, lattice = [], [], []
@@ -279,8 +286,8 @@ def scan_matched_filter(measurements: Measurements, grid: Grid, *, device=None) 
     centres = grid.axes()[depth_axis]
     depths = (centres - scan.origin_m[depth_axis]) / scan.axis_z[depth_axis]
     pairs, frequencies = len(scan.tx_offsets_m), len(scan.frequencies_hz)
-    padded = np.prod([scipy_fft.next_fast_len(n + c - 1) for n, c in zip(scan.shape, count)])
-    require_memory(16 * pairs * frequencies * (int(np.prod(scan.shape)) + 2 * int(padded)),
+    padded = int(np.prod(_fft_shape(scan, tuple(count))))
+    require_memory(16 * pairs * frequencies * (int(np.prod(scan.shape)) + 2 * padded),
                    f"the spectra of a {scan.shape[0]} x {scan.shape[1]} scan ({pairs} pairs, {frequencies} frequencies)")
     data = torch.zeros(*scan.shape, pairs, frequencies, dtype=torch.complex128)
     data[index[:, 0], index[:, 1]] = measurements.data.reshape(len(index), -1, data.shape[-1]).to(torch.complex128)
