@@ -144,3 +144,13 @@ def test_roughness_rayleigh_factor_and_diffuse_return_of_the_surface_not_the_sam
     assert row[("smooth", "stratified", 3)]["sampling_difference_db"] < noisy["sampling_difference_db"] - 10
     rough, smooth = row[("rms 0.5 mm", "stratified", 12)], row[("smooth", "stratified", 12)]
     assert rough["return_db"] > smooth["return_db"] + 6 and rough["sampling_difference_db"] < rough["return_db"] - 20
+
+
+def test_basin_each_loss_is_lowest_at_the_truth_and_rises_with_the_error(results):
+    r = results["basin"]["result"]
+    for name, at_starts in r["start_loss"].items():
+        assert r["truth_loss"][name] < min(at_starts)
+        assert at_starts == sorted(at_starts)  # 1 mm, then 4 mm
+    assert r["start_observed_mm"][0] < r["start_observed_mm"][1]
+    for schedule, ends in r["end_objects_mm"].items():
+        assert len(ends) == len(r["errors_mm"]) and all(set(end) == set(r["start_objects_mm"][0]) for end in ends)
