@@ -42,7 +42,7 @@ from ..viz.figures import plt, save_figure
 from .ball_fit import small_radar
 
 NAME = "basin"
-SUMMARY = "where each data loss ends from the true surface displaced by smooth errors of 0.25-8 mm"
+SUMMARY = "where the fit ends from the true surface displaced by smooth errors of 1-4 mm, object by object"
 
 # each fit's data losses: one loss throughout, or a continuation (LossConfig.stages)
 SCHEDULES = {
@@ -157,8 +157,8 @@ def run(settings: Settings) -> Result:
             "render": {"element_step": settings.element_step, "refresh_every": settings.refresh_every},
             "loss": {"stages": SCHEDULES[schedule]},
             "sampling": {"views_per_step": settings.views_per_step, "data_batch": settings.data_batch},
-            "train": {"steps": settings.steps, "lr": settings.lr, "checkpoint_every": settings.steps, "geometry_delay": 0.0,
-                      "seed": settings.seed, "device": str(device)}})
+            "train": {"steps": settings.steps, "lr": settings.lr, "checkpoint_every": settings.steps,
+                      "geometry_delay": 0.0, "seed": settings.seed, "device": str(device)}})
 
     losses = SurfaceLosses(problem, config("amplitude"), known)
     displacement = smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(settings.seed))
