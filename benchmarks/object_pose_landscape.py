@@ -20,6 +20,7 @@ from pathlib import Path
 import torch
 from demo_data import demo_data
 
+from rfsdf.geometry.transforms import rotation_matrix
 from rfsdf.jsonio import write_json
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig
@@ -28,15 +29,6 @@ from rfsdf.studies.basin import SurfaceLosses, TrueMaterials
 TILTS_DEG = (0.5, 1.0, 2.0, 4.0, 8.0)
 SHIFTS_MM = (0.5, 1.0, 2.0, 4.0)
 TILT_AXIS = (1.0, 1.0, 0.3)
-
-
-def rotation(axis, degrees: float) -> torch.Tensor:
-    """(3, 3) rotation by ``degrees`` about ``axis`` (Rodrigues)."""
-    a = torch.tensor(axis, dtype=torch.float64)
-    a = a / a.norm()
-    k = torch.tensor([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]], dtype=torch.float64)
-    t = math.radians(degrees)
-    return torch.eye(3, dtype=torch.float64) + math.sin(t) * k + (1 - math.cos(t)) * k @ k
 
 
 def moved(scene, index: int, centre: torch.Tensor, turn: torch.Tensor, shift: torch.Tensor):
@@ -60,11 +52,11 @@ def main() -> None:
     losses = SurfaceLosses(problem, ReconConfig.model_validate({"train": {"device": "cpu"}}), known)
     surface = scene.sample_surface(0.002, seed=0, max_samples=200_000)
     result = {"truth": losses(lambda p: scene.sdf(p.double()).float()), "tilt_axis": TILT_AXIS, "objects": {}}
-    still = torch.eye(3, dtype=torch.float64)
+    still, none = torch.eye(3, dtype=torch.float64), torch.zeros(3, dtype=torch.float64)
     for index, obj in enumerate(scene.objects):
         centre = surface.points[surface.object_index == index].double().mean(0)
-        none = torch.zeros(3, dtype=torch.float64)
-        tilts = {str(deg): losses(moved(scene, index, centre, rotation(TILT_AXIS, deg), none)) for deg in TILTS_DEG}
+        tilts = {str(deg): losses(moved(scene, index, centre, rotation_matrix(TILT_AXIS, math.radians(deg)), none))
+                 for deg in TILTS_DEG}
         shifts = {str(mm): losses(moved(scene, index, centre, still, torch.full((3,), mm * 1e-3 / math.sqrt(3),
                                                                                 dtype=torch.float64)))
                   for mm in SHIFTS_MM}
