@@ -13,7 +13,7 @@ from rfsdf.errors import RfsdfError
 from rfsdf.radar.acquisition import SPEED_OF_LIGHT
 from rfsdf.radar.boards import board, board_positions
 from rfsdf.radar.formats.dca1000 import AdcLayout, read_bin, read_cf_json, write_bin, write_cf_json
-from rfsdf.radar.formats.mmwave_studio import ChirpConfig, read_mmwave_json, write_mmwave_json
+from rfsdf.radar.formats.mmwave_studio import ChirpConfig, read_mmwave_json, read_setup_json, write_mmwave_json
 from rfsdf.radar.formats.poses import read_poses, write_poses
 from rfsdf.radar.formats.ti_capture import CaptureGeometry, import_ti_capture, write_ti_capture
 from rfsdf.radar.operator import SensingOperator
@@ -21,7 +21,7 @@ from rfsdf.radar.operator import SensingOperator
 # GeRaF's capture (IWR1443, one Tx, four Rx, one chirp a frame every 3 ms), with 16 samples
 CHIRP = ChirpConfig(start_hz=77e9, slope_hz_per_s=70.15e12, sample_rate_hz=10e6, samples=16, adc_start_s=6e-6,
                     idle_s=7e-6, ramp_end_s=57.14e-6, rx_mask=0xF, tx_mask=0x1, complex=True, chirps_per_loop=1,
-                    loops=1, frames=0, frame_period_s=3e-3)
+                    loops=1, frames=0, frame_period_s=3e-3, lanes=4)
 
 
 def _int16(path, values):
@@ -166,10 +166,26 @@ def test_the_iwr1443_rx_lie_on_a_line_from_its_tx():
     tx, rx = board_positions(iwr1443, tx0, np.array([0, 0, 1.0]), np.array([1.0, 0, 0.5]), tx_mask=0b111)
     assert rx[0] - tx0 == pytest.approx(np.array([[0.005 + (3 - k) * half, 0, 0] for k in range(4)]))
     assert tx[0, 2] - tx0[0] == pytest.approx([-4 * half, 0, 0]) and abs(tx[0, 1, 1] - 0.2) == pytest.approx(half)
-    with pytest.raises(RfsdfError, match="unknown chip 'awr9999'; known: iwr1443"):
+    with pytest.raises(RfsdfError, match="unknown chip 'awr9999'; known: iwr1443, awr1843, iwr6843"):
         board("awr9999")
     with pytest.raises(RfsdfError, match="txChannelEn: 0x8 enables antennas the iwr1443 lacks"):
         board_positions(iwr1443, tx0, np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), tx_mask=0x8)
+
+
+@pytest.mark.parametrize("name, design_hz", [("awr1843", 79e9), ("iwr6843", 62e9)])
+def test_the_three_tx_boards_form_tis_virtual_array(name, design_hz):
+    """TI's 2 x 8 virtual array: Tx0's and Tx2's pairs continue one another in a line of eight,
+    lambda/2 apart as seen by the phase (midpoints lambda/4 apart); Tx1's four sit over the
+    middle four, lambda/4 (midpoint) across; two LVDS lanes."""
+    chip = board(name)
+    half = SPEED_OF_LIGHT / design_hz / 2
+    tx, rx = board_positions(chip, np.zeros((1, 3)), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), tx_mask=0b111)
+    centres = (tx[0, :, None] + rx[0, None]) / 2  # (3 Tx, 4 Rx, 3) phase centres
+    line = np.sort(np.concatenate([centres[0, :, 0], centres[2, :, 0]]))
+    assert np.diff(line) == pytest.approx(np.full(7, half / 2))
+    assert np.sort(centres[1, :, 0]) == pytest.approx(line[2:6])
+    assert abs(centres[1, :, 1]) == pytest.approx(np.full(4, half / 2)) and centres[[0, 2], :, 1] == pytest.approx(0)
+    assert chip.lanes == 2 and chip.conjugate
 
 
 def _scan(rows=3, cols=4, step=0.97e-3):
@@ -254,12 +270,16 @@ def test_rfsdf_import_reads_a_dca1000_capture(tmp_path):
 
 
 @pytest.mark.parametrize("change, message", [
-    (lambda a, d: a.remove("--chip") or a.remove("iwr1443"), "needs --chip and --poses"),
+    (lambda a, d: a.remove("--chip") or a.remove("iwr1443"), "needs --chip .its setup names no device"),
     (lambda a, d: a.__setitem__(a.index("iwr1443"), "awr9999"), "--chip: unknown chip 'awr9999'"),
     (lambda a, d: (d / "adc_data.bin").write_bytes((d / "adc_data.bin").read_bytes()[:-2]),
      "adc_data.bin: size .* is not a whole number of frames"),
     (lambda a, d: (d / "poses.csv").write_text("x_m,y_m,z_m\n0,0,0\n"), "poses.csv: 1 poses for 12 frames"),
     (lambda a, d: (d / "cf.json").write_text('{"other": 1}'), "cf.json: neither an mmWave Studio"),
+    (lambda a, d: a.__setitem__(1, str(d / "capture.setup.json")) or (d / "adc_data.bin").unlink(),
+     r"capture.setup.json: capturedFiles.files\[0\]: none of \['adc_data.bin'\]"),
+    (lambda a, d: a.__setitem__(1, str(d / "capture.setup.json")) or (d / "capture.mmwave.json").rename(d / "x.json"),
+     "capture.setup.json: configUsed: 'capture.mmwave.json' is neither there nor beside"),
     (lambda a, d: a.__setitem__(a.index("0,-1,0"), "0,0,2"), "--rx-axis: must not be parallel to --boresight"),
     (lambda a, d: a.__setitem__(a.index("0,-1,0"), "0,nan,1"), "--rx-axis: expected three finite numbers"),
 ])
@@ -279,6 +299,56 @@ def test_rfsdf_import_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path,
     assert not (tmp_path / "data.h5").exists()
 
 
+def test_rfsdf_import_reads_a_capture_through_its_setup_json(tmp_path):
+    """mmWave Studio's setup.json names the config, the .bin and the device: nothing else but
+    the poses is needed, and the record split in two files (as the DCA1000 splits large ones)
+    reads as one."""
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.radar import read_measurements
+
+    expected = _written_capture(tmp_path)
+    record = (tmp_path / "adc_data.bin").read_bytes()
+    (tmp_path / "adc_data_Raw_0.bin").write_bytes(record[:1000])
+    (tmp_path / "adc_data_Raw_1.bin").write_bytes(record[1000:])
+    setup = json.loads((tmp_path / "capture.setup.json").read_text())
+    setup["configUsed"] = "C:\\ti\\mmwave_studio\\JSONSampleFiles\\capture.mmwave.json"  # the capturing PC's path
+    setup["capturedFiles"] = {"fileBasePath": "C:\\ti\\PostProc", "numFilesCollected": 2,
+                              "files": [{"rawFileName": f"adc_data_Raw_{k}.bin"} for k in range(2)]}
+    (tmp_path / "capture.setup.json").write_text(json.dumps(setup))
+    (tmp_path / "adc_data.bin").unlink()
+    result = CliRunner().invoke(main, ["import", str(tmp_path / "capture.setup.json"), "--poses",
+                                       str(tmp_path / "poses.csv"), "--out", str(tmp_path / "data.h5")])
+    assert result.exit_code == 0, result.output
+    imported = read_measurements(tmp_path / "data.h5")
+    assert torch.equal(imported.data, expected.data) and torch.equal(imported.acquisition.tx_m, expected.acquisition.tx_m)
+    setup["DCA1000Config"]["dataLoggingMode"] = "multi"
+    (tmp_path / "capture.setup.json").write_text(json.dumps(setup))
+    with pytest.raises(RfsdfError, match="dataLoggingMode: 'multi'; only raw captures"):
+        read_setup_json(tmp_path / "capture.setup.json")
+
+
+@pytest.mark.parametrize("name", ["awr1843", "iwr6843"])
+def test_a_three_tx_two_lane_capture_reads_back_with_the_lanes_its_mmwave_json_records(tmp_path, name):
+    """TDM MIMO over three Tx, two LVDS lanes: the lanes come from the *.mmwave.json
+    (rawDataCaptureConfig.rlDevLaneEnable_t.laneEn), with no cf.json."""
+    from rfsdf.radar.acquisition import Measurements
+
+    start = 77e9 if name == "awr1843" else 60e9
+    chirp = ChirpConfig(**{**CHIRP.__dict__, "start_hz": start, "tx_mask": 0b111, "chirps_per_loop": 3, "lanes": 2})
+    geometry = CaptureGeometry(board(name))
+    acquisition = geometry.acquisition(chirp, _scan())
+    assert acquisition.shape == (12, 3, 4, 16)
+    data = SensingOperator(acquisition).forward(torch.zeros(1, 3, dtype=torch.float64), torch.ones(1, dtype=torch.complex128))
+    scale = write_ti_capture(tmp_path, Measurements(acquisition, data), chirp, geometry)
+    (tmp_path / "cf.json").unlink()
+    config = read_mmwave_json(tmp_path / "capture.mmwave.json")
+    assert config.lanes == 2 and read_setup_json(tmp_path / "capture.setup.json").device == name
+    back = import_ti_capture(tmp_path / "adc_data.bin", config, geometry, write_poses(tmp_path / "poses.csv", _scan()))
+    assert (back.data.to(torch.complex128) - data * scale).abs().max() <= 0.5 * 2 ** 0.5 + 1e-2
+
+
 def test_an_mmwave_json_written_by_hand_as_mmwave_studio_lays_it_out_is_read(tmp_path):
     """Not through rfsdf's writer: mmWave Studio's field names and units, hex masks as strings,
     two profiles (the first is read), three chirps a loop."""
@@ -295,7 +365,7 @@ def test_an_mmwave_json_written_by_hand_as_mmwave_studio_lays_it_out_is_read(tmp
     (tmp_path / "studio.mmwave.json").write_text(json.dumps(document))
     chirp = read_mmwave_json(tmp_path / "studio.mmwave.json")
     assert (chirp.samples, chirp.rx, chirp.chirps_per_loop, chirp.loops, chirp.chirps, chirp.frames) == (256, 4, 3, 16, 48, 8)
-    assert (chirp.rx_mask, chirp.tx_mask, chirp.complex) == (0xF, 0x7, True)
+    assert (chirp.rx_mask, chirp.tx_mask, chirp.complex, chirp.lanes) == (0xF, 0x7, True, None)
     assert chirp.slope_hz_per_s == pytest.approx(70.295e12) and chirp.sample_rate_hz == pytest.approx(5e6)
     assert chirp.frame_period_s == pytest.approx(0.04) and chirp.idle_s == pytest.approx(100e-6)
     assert chirp.frequencies_hz()[0] == pytest.approx(77e9 + 70.295e12 * 6e-6)

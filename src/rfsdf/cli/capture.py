@@ -11,7 +11,7 @@ import click
 from .app import main, one_line_errors, refuse_overwriting_inputs
 
 FORMATS = ("auto", "hdf5", "dca1000")
-_SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000"}
+_SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000", ".json": "dca1000"}  # .json: a setup.json
 
 
 def _vector(text: str, option: str) -> tuple[float, float, float]:
@@ -35,38 +35,49 @@ def _capture_format(capture: Path, name: str) -> str:
                          f"({', '.join(FORMATS[1:])})") from None
 
 
-def _ti_configs(paths: tuple[Path, ...]):
-    """The chirp (an mmWave Studio *.mmwave.json) and the lanes (a DCA1000 cf.json, or None) of --config."""
+def _ti_inputs(capture: Path, configs: tuple[Path, ...]):
+    """The .bin files, chirp, lanes (None: not given) and recorded device of a DCA1000 capture.
+    ``capture`` is a .bin, or mmWave Studio's *.setup.json naming its .bin files and config;
+    each --config an *.mmwave.json, a *.setup.json or a DCA1000 CLI cf.json. An explicit
+    *.mmwave.json wins over a setup's ``configUsed``."""
     from ..errors import RfsdfError
     from ..radar.formats.dca1000 import read_cf_json
-    from ..radar.formats.mmwave_studio import read_mmwave_json
+    from ..radar.formats.mmwave_studio import read_mmwave_json, read_setup_json
 
-    chirp = lanes = None
-    for path in paths:
+    setup_capture = capture.suffix.lower() == ".json"
+    bins, chirp, lanes, setup = None if setup_capture else (capture,), None, None, None
+    for path in ((capture,) if setup_capture else ()) + configs:
         try:
             keys = json.loads(path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise RfsdfError(f"{path}: cannot read as JSON ({getattr(exc, 'strerror', None) or exc})") from None
         if isinstance(keys, dict) and "mmWaveDevices" in keys:
             chirp = read_mmwave_json(path)
+        elif isinstance(keys, dict) and ("configUsed" in keys or "capturedFiles" in keys):
+            setup = read_setup_json(path)
+            bins = bins or setup.captures
         elif isinstance(keys, dict) and "DCA1000Config" in keys:
             lanes = read_cf_json(path)
         else:
-            raise RfsdfError(f"{path}: neither an mmWave Studio *.mmwave.json (mmWaveDevices) nor a DCA1000 cf.json "
-                             "(DCA1000Config)")
+            raise RfsdfError(f"{path}: neither an mmWave Studio *.mmwave.json (mmWaveDevices) or *.setup.json "
+                             "(configUsed) nor a DCA1000 cf.json (DCA1000Config)")
+    if chirp is None and setup is not None:
+        chirp = read_mmwave_json(setup.config)
     if chirp is None:
-        raise RfsdfError("--config: a DCA1000 capture needs its mmWave Studio *.mmwave.json")
-    return chirp, lanes
+        raise RfsdfError("--config: a DCA1000 capture needs its mmWave Studio *.mmwave.json (or *.setup.json)")
+    return bins, chirp, lanes, setup.device if setup is not None else ""
 
 
 @main.command("import")
 @click.argument("capture", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
 @click.option("--format", "format_name", type=click.Choice(FORMATS), default="auto", show_default=True,
-              help="auto: by the name (.h5 hdf5, .bin dca1000).")
+              help="auto: by the name (.h5 hdf5; .bin, or mmWave Studio's .setup.json, dca1000).")
 @click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
-              help="dca1000: the mmWave Studio *.mmwave.json, and optionally the DCA1000 CLI's cf.json (lanes).")
-@click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): iwr1443.")
+              help="dca1000: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the DCA1000 "
+                   "CLI's cf.json (lanes).")
+@click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): "
+              "iwr1443, awr1843, iwr6843; default: the setup.json's mmWaveDevice.")
 @click.option("--poses", type=click.Path(path_type=Path), default=None,
               help="dca1000: CSV of Tx0 positions, x_m,y_m,z_m a frame or time_s,x_m,y_m,z_m interpolated at the frames.")
 @click.option("--boresight", default="0,0,1", show_default=True, help="dca1000: the board's boresight X,Y,Z.")
@@ -81,8 +92,8 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
                poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
                conjugate: bool | None):
     """Convert a real capture into a measurements file: rfsdf's HDF5 layout, or a TI DCA1000
-    .bin with its mmWave Studio config, board and pose file (each frame a view; layouts in
-    docs/reference/formats.md)."""
+    .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file
+    (each frame a view; layouts in docs/reference/formats.md)."""
     from ..radar import import_fmcw, write_measurements
 
     refuse_overwriting_inputs(out, capture, *configs, poses)
@@ -90,17 +101,20 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
     if kind == "hdf5":
         measurements = import_fmcw(capture, conjugate=bool(conjugate))
     else:
-        from ..radar.boards import board
+        from ..radar.boards import BOARDS, board
         from ..radar.formats.ti_capture import CaptureGeometry, import_ti_capture
 
-        if chip is None or poses is None:
-            raise ValueError(f"{capture}: a DCA1000 capture needs --chip and --poses")
+        if poses is None:
+            raise ValueError(f"{capture}: a DCA1000 capture needs --poses")
         if range_delay_m is not None and not math.isfinite(range_delay_m):
             raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
-        chirp, lanes = _ti_configs(configs)
-        geometry = CaptureGeometry(board(chip), _vector(boresight, "--boresight"), _vector(rx_axis, "--rx-axis"),
-                                   range_delay_m, conjugate)
-        measurements = import_ti_capture(capture, chirp, geometry, poses, lanes=lanes)
+        bins, chirp, lanes, device = _ti_inputs(capture, configs)
+        if chip is None and device not in BOARDS:
+            raise ValueError(f"{capture}: a DCA1000 capture needs --chip (its setup names "
+                             f"{device or 'no device'}; known: {', '.join(BOARDS)})")
+        geometry = CaptureGeometry(board(chip or device), _vector(boresight, "--boresight"),
+                                   _vector(rx_axis, "--rx-axis"), range_delay_m, conjugate)
+        measurements = import_ti_capture(bins, chirp, geometry, poses, lanes=lanes)
     write_measurements(out, measurements)
     v, t, r, k = measurements.acquisition.shape
     f = measurements.acquisition.frequencies_hz

@@ -4,7 +4,8 @@ Antenna offsets are in the board's own frame relative to Tx0 (the position a pos
 gives): ``u`` along the Rx line, pointing from Tx0 towards the Rx (what ``--rx-axis``
 orients), and ``w = boresight x u``. A board's fixed range delay is the extra path [m]
 its internal delay adds to every return (TI's 0.15 m, as GeRaF's back-projection
-subtracts), and ``conjugate`` says that its dechirped IF is exp(+j 2 pi f tau), the
+subtracts for the IWR1443; assumed for the other TI chips until a corner reflector says
+otherwise: ``--range-delay``), and ``conjugate`` says that its dechirped IF is exp(+j 2 pi f tau), the
 complex conjugate of rfsdf's model.
 """
 
@@ -39,7 +40,19 @@ def _iwr1443() -> Board:
                  rx_uw_m=tuple((0.005 + (3 - k) * half, 0.0) for k in range(4)), conjugate=True, range_delay_m=0.15)
 
 
-BOARDS = {b.name: b for b in (_iwr1443(),)}
+def _three_tx_board(name: str, design_hz: float) -> Board:
+    """The xWR18xx/68xx booster-pack layout (TI's AWR1843BOOST and IWR6843ISK user's guides):
+    four Rx lambda/2 apart; Tx0 and Tx2 2 lambda apart along the Rx line, so that their
+    virtual arrays continue one another (8 x lambda/2 in azimuth); Tx1 between them, lambda
+    from Tx0 and lambda/2 across (the elevated row). The Tx-to-Rx gap is not published; it is
+    taken as the IWR1443BOOST's 5 mm (at 0.2 m a centimetre of it changes a path by 0.25 mm)."""
+    half = SPEED_OF_LIGHT / design_hz / 2
+    return Board(name, lanes=2, tx_uw_m=((0.0, 0.0), (-2 * half, half), (-4 * half, 0.0)),
+                 rx_uw_m=tuple((0.005 + (3 - k) * half, 0.0) for k in range(4)), conjugate=True, range_delay_m=0.15)
+
+
+BOARDS = {b.name: b for b in (_iwr1443(), _three_tx_board("awr1843", 77e9 + 2e9),
+                               _three_tx_board("iwr6843", 60e9 + 2e9))}
 
 
 def board(name: str, source: str = "--chip") -> Board:

@@ -87,20 +87,21 @@ def _to_int16(values: np.ndarray) -> np.ndarray:
     return rounded.astype(_INT16)
 
 
-def read_bin(path, layout: AdcLayout) -> np.ndarray:
-    """The ADC samples of a DCA1000 ``.bin`` (frames, chirps, rx, samples), complex64 or float32."""
-    path = Path(path)
+def read_bin(paths, layout: AdcLayout) -> np.ndarray:
+    """The ADC samples of a DCA1000 ``.bin`` (frames, chirps, rx, samples), complex64 or float32.
+    ``paths``: one file, or the files the DCA1000 split one record into, in order."""
+    paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     try:
-        size = path.stat().st_size
+        size = sum(path.stat().st_size for path in paths)
     except OSError as exc:
-        raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        raise RfsdfError(f"{exc.filename}: cannot read ({exc.strerror or exc})") from None
     frame_bytes = layout.frame_values * _INT16.itemsize
     if size == 0 or size % frame_bytes:
-        raise RfsdfError(f"{path}: size {size} bytes is not a whole number of frames of {frame_bytes} bytes "
-                         f"({layout.chirps} chirps x {layout.rx} Rx x {layout.samples} samples, "
+        raise RfsdfError(f"{', '.join(map(str, paths))}: size {size} bytes is not a whole number of frames of "
+                         f"{frame_bytes} bytes ({layout.chirps} chirps x {layout.rx} Rx x {layout.samples} samples, "
                          f"{'complex' if layout.complex else 'real'}, {layout.lanes} lanes, from the config)")
-    values = np.fromfile(path, dtype=_INT16).reshape(size // frame_bytes, layout.frame_values)
-    return layout._decode(values)
+    values = np.concatenate([np.fromfile(path, dtype=_INT16) for path in paths])
+    return layout._decode(values.reshape(size // frame_bytes, layout.frame_values))
 
 
 def write_bin(path, cube: np.ndarray, layout: AdcLayout) -> Path:

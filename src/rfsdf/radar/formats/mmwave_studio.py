@@ -1,11 +1,18 @@
-"""TI mmWave Studio's ``*.mmwave.json``: the chirp, channels and frame of a capture.
+"""TI mmWave Studio's ``*.mmwave.json`` (the chirp, channels and frame of a capture) and
+``*.setup.json`` (which config, which captured files, which device, the DCA1000's lanes).
 
 Read from ``mmWaveDevices[0].rfConfig`` (some versions write one device as an object rather
 than a list): ``rlProfiles[0].rlProfileCfg_t`` (start frequency [GHz], slope [MHz/us],
 ADC samples, sample rate [ksps], idle, ADC start and ramp end times [us]), ``rlChanCfg_t``
 (Rx and Tx enable masks), ``rlAdcOutCfg_t.fmt`` (16 bits; real or complex samples) and
-``rlFrameCfg_t`` (chirps of a loop, loops, frames, periodicity [ms]). The first ADC sample
+``rlFrameCfg_t`` (chirps of a loop, loops, frames, periodicity [ms]); the LVDS lanes, where
+recorded, from ``rawDataCaptureConfig.rlDevLaneEnable_t.laneEn`` (one bit a lane). The first ADC sample
 lies at the start frequency plus slope x ADC start time.
+
+A ``*.setup.json`` names the ``*.mmwave.json`` it used (``configUsed``), the files it
+captured (``capturedFiles.fileBasePath`` and ``files[].processedFileName`` or
+``rawFileName``) and the device (``mmWaveDevice``); its ``DCA1000Config`` must log raw. Its paths are the capturing PC's (often Windows): a file is found there
+or, failing that, by its name beside the setup file.
 """
 
 from __future__ import annotations
@@ -20,7 +27,8 @@ from ...atomic import atomic_path
 from ...errors import RfsdfError
 from ..waveform import fmcw_frequencies
 
-__all__ = ["ChirpConfig", "read_mmwave_json", "write_mmwave_json"]
+__all__ = ["ChirpConfig", "read_mmwave_json", "write_mmwave_json", "CaptureSetup", "read_setup_json",
+           "write_setup_json"]
 
 _SIXTEEN_BITS = 2  # rlAdcOutCfg_t.fmt.b2AdcBits
 _REAL = 0  # rlAdcOutCfg_t.fmt.b2AdcOutFmt: 0 real, 1 complex (1x), 2 complex (2x)
@@ -44,6 +52,7 @@ class ChirpConfig:
     loops: int
     frames: int
     frame_period_s: float
+    lanes: int | None = None  # LVDS lanes to the DCA1000 (rawDataCaptureConfig), if recorded
 
     @property
     def rx(self) -> int:
@@ -72,18 +81,22 @@ def _where(keys) -> str:
     return "".join(f"[{key}]" if isinstance(key, int) else f".{key}" for key in keys).lstrip(".")
 
 
-def read_mmwave_json(path) -> ChirpConfig:
-    """The :class:`ChirpConfig` of an mmWave Studio ``*.mmwave.json``; one error line naming the
-    file and the field for anything missing or out of range."""
-    path = Path(path)
+def _json(path: Path):
     try:
-        document = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except OSError as exc:
         raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise RfsdfError(f"{path}: not JSON ({exc})") from None
 
-    def field(*keys):
+
+def read_mmwave_json(path) -> ChirpConfig:
+    """The :class:`ChirpConfig` of an mmWave Studio ``*.mmwave.json``; one error line naming the
+    file and the field for anything missing or out of range."""
+    path = Path(path)
+    document = _json(path)
+
+    def field(*keys, required=True):
         value = document
         for depth, key in enumerate(keys):
             if isinstance(key, int) and isinstance(value, dict):  # one device written as an object
@@ -91,11 +104,13 @@ def read_mmwave_json(path) -> ChirpConfig:
             try:
                 value = value[key]
             except (KeyError, IndexError, TypeError):
+                if not required:
+                    return None
                 raise RfsdfError(f"{path}: {_where(keys[:depth + 1])}: missing") from None
         return value
 
-    def number(keys, kind=float, positive=True):
-        value = field(*keys)
+    def number(keys, kind=float, positive=True, value=None):
+        value = field(*keys) if value is None else value
         try:
             number = kind(int(value, 16) if isinstance(value, str) and value.lower().startswith("0x") else value)
         except (TypeError, ValueError):
@@ -117,7 +132,10 @@ def read_mmwave_json(path) -> ChirpConfig:
     first, last = (number((*frame, key), int, positive=False) for key in ("chirpStartIdx", "chirpEndIdx"))
     if last < first:
         raise RfsdfError(f"{path}: {_where((*frame, 'chirpEndIdx'))}: {last} is before chirpStartIdx {first}")
-    return ChirpConfig(**values, rx_mask=number((*rf, "rlChanCfg_t", "rxChannelEn"), int),
+    lane_keys = (*rf[:2], "rawDataCaptureConfig", "rlDevLaneEnable_t", "laneEn")
+    lane_mask = field(*lane_keys, required=False)
+    lanes = None if lane_mask is None else bin(number(lane_keys, int, value=lane_mask)).count("1")
+    return ChirpConfig(**values, lanes=lanes, rx_mask=number((*rf, "rlChanCfg_t", "rxChannelEn"), int),
                        tx_mask=number((*rf, "rlChanCfg_t", "txChannelEn"), int),
                        complex=field(*rf, "rlAdcOutCfg_t", "fmt", "b2AdcOutFmt") != _REAL,
                        chirps_per_loop=last - first + 1, loops=number((*frame, "numLoops"), int),
@@ -129,12 +147,83 @@ def write_mmwave_json(path, config: ChirpConfig) -> Path:
     """An ``*.mmwave.json`` holding ``config`` in mmWave Studio's fields (the ones read back)."""
     profile = {key: getattr(config, name) / scale for key, name, scale in _PROFILE}
     profile["numAdcSamples"] = config.samples
-    document = {"configGenerator": {"createdBy": "rfsdf"}, "mmWaveDevices": [{"mmWaveDeviceId": 0, "rfConfig": {
+    device = {"mmWaveDeviceId": 0}
+    if config.lanes is not None:
+        device["rawDataCaptureConfig"] = {"rlDevLaneEnable_t": {"laneEn": hex((1 << config.lanes) - 1)}}
+    document = {"configGenerator": {"createdBy": "rfsdf"}, "mmWaveDevices": [{**device, "rfConfig": {
         "rlChanCfg_t": {"rxChannelEn": hex(config.rx_mask), "txChannelEn": hex(config.tx_mask)},
         "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": _SIXTEEN_BITS, "b2AdcOutFmt": 1 if config.complex else _REAL}},
         "rlProfiles": [{"rlProfileCfg_t": {"profileId": 0, **profile}}],
         "rlFrameCfg_t": {"chirpStartIdx": 0, "chirpEndIdx": config.chirps_per_loop - 1, "numLoops": config.loops,
                          "numFrames": config.frames, "framePeriodicity_msec": config.frame_period_s * 1e3}}}]}
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(document, indent=2))
+    return Path(path)
+
+
+@dataclass(frozen=True)
+class CaptureSetup:
+    """What a ``*.setup.json`` points at: the ``config`` (``*.mmwave.json``), the ``captures``
+    (the .bin files of one record, in order) and the ``device`` (e.g. ``awr1843``; empty if
+    not recorded)."""
+
+    config: Path
+    captures: tuple[Path, ...]
+    device: str
+
+
+def _locate(setup: Path, recorded: str) -> Path | None:
+    """The file the capturing PC recorded as ``recorded``: there, or by its name beside ``setup``;
+    None where it is in neither."""
+    name = recorded.replace("\\", "/").rsplit("/", 1)[-1]
+    for candidate in (Path(recorded), setup.parent / name):
+        if name and candidate.is_file():
+            return candidate
+    return None
+
+
+def read_setup_json(path) -> CaptureSetup:
+    """The :class:`CaptureSetup` of an mmWave Studio ``*.setup.json`` (one error line naming the
+    file and field for anything missing, or a file it names that cannot be found)."""
+    path = Path(path)
+    document = _json(path)
+    if not isinstance(document, dict):
+        raise RfsdfError(f"{path}: not a setup.json (a JSON object)")
+    config_used = document.get("configUsed")
+    config = _locate(path, config_used) if isinstance(config_used, str) else None
+    if config is None:
+        raise RfsdfError(f"{path}: configUsed: {config_used!r} is neither there nor beside the setup file")
+    captured = document.get("capturedFiles")
+    files = captured.get("files") if isinstance(captured, dict) else None
+    if not isinstance(files, list) or not files or not all(isinstance(f, dict) for f in files):
+        raise RfsdfError(f"{path}: capturedFiles.files: missing or empty")
+    base = str(captured.get("fileBasePath") or "").rstrip("/\\")
+    separator = "\\" if "\\" in base else "/"
+    captures = []
+    for k, entry in enumerate(files):
+        names = [entry[key] for key in ("processedFileName", "rawFileName") if isinstance(entry.get(key), str)]
+        found = [f for f in (_locate(path, f"{base}{separator}{name}" if base else name) for name in names) if f]
+        if not found:
+            raise RfsdfError(f"{path}: capturedFiles.files[{k}]: none of {names} is in {base!r} "
+                             "or beside the setup file")
+        captures.append(found[0])
+    logging = (document.get("DCA1000Config") or {}).get("dataLoggingMode", "raw")
+    if logging != "raw":
+        raise RfsdfError(f"{path}: DCA1000Config.dataLoggingMode: {logging!r}; only raw captures are read "
+                         "(multi mode adds packet headers)")
+    return CaptureSetup(config, tuple(captures), str(document.get("mmWaveDevice") or "").lower())
+
+
+def write_setup_json(path, config: Path, captures: list[Path], device: str) -> Path:
+    """A ``*.setup.json`` naming ``config`` and ``captures`` (by name, beside it) and ``device``,
+    in mmWave Studio's fields."""
+    document = {"createdBy": "rfsdf", "configUsed": Path(config).name, "captureHardware": "DCA1000",
+                "DCA1000Config": {"dataLoggingMode": "raw", "dataTransferMode": "LVDSCapture",
+                                  "dataCaptureMode": "ethernetStream", "packetSequenceEnable": 1,
+                                  "packetDelay_us": 25},
+                "mmWaveDevice": device,
+                "capturedFiles": {"fileBasePath": "", "numFilesCollected": len(captures),
+                                  "files": [{"processedFileName": Path(c).name} for c in captures]}}
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(document, indent=2))
     return Path(path)

@@ -1,5 +1,7 @@
-"""A TI capture as measurements: a DCA1000 ``.bin``, its mmWave Studio ``*.mmwave.json`` (and
-optionally the DCA1000 CLI's ``cf.json``), a board and a pose file -> :class:`Measurements`.
+"""A TI capture as measurements: a DCA1000 ``.bin`` (or the files it split one record into),
+its mmWave Studio ``*.mmwave.json`` (and optionally the DCA1000 CLI's ``cf.json``), a board
+and a pose file -> :class:`Measurements`. The LVDS lanes come from the ``cf.json``, else the
+``*.mmwave.json``, else the board.
 
 Each frame becomes a view: its chirps of one loop are its Tx (TDM MIMO; the loops of a
 frame are averaged, the scene being static), the enabled Rx its Rx, ADC sample n the
@@ -19,7 +21,7 @@ from ...errors import RfsdfError
 from ..acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from ..boards import Board, board_positions
 from .dca1000 import AdcLayout, read_bin, write_bin, write_cf_json
-from .mmwave_studio import ChirpConfig, write_mmwave_json
+from .mmwave_studio import ChirpConfig, write_mmwave_json, write_setup_json
 from .poses import read_poses
 
 __all__ = ["CaptureGeometry", "import_ti_capture", "write_ti_capture"]
@@ -64,32 +66,35 @@ def _layout(chirp: ChirpConfig, lanes: int) -> AdcLayout:
     return AdcLayout(lanes, chirp.complex, chirp.rx, chirp.samples, chirp.chirps)
 
 
-def import_ti_capture(bin_path, chirp: ChirpConfig, geometry: CaptureGeometry, poses, *,
+def import_ti_capture(bin_paths, chirp: ChirpConfig, geometry: CaptureGeometry, poses, *,
                       lanes: int | None = None) -> Measurements:
-    """Measurements of the DCA1000 capture ``bin_path`` recorded with ``chirp`` over ``lanes``
-    (None: the board's), the board held as ``geometry`` at the pose file ``poses``."""
+    """Measurements of the DCA1000 capture ``bin_paths`` (one file or the parts of one record)
+    recorded with ``chirp`` over ``lanes`` (None: the chirp config's, else the board's), the
+    board held as ``geometry`` at the pose file ``poses``."""
+    bin_paths = [bin_paths] if isinstance(bin_paths, (str, Path)) else list(bin_paths)
     if not chirp.complex:
-        raise RfsdfError(f"{bin_path}: real-sampled capture (rlAdcOutCfg_t.fmt.b2AdcOutFmt 0): rfsdf's model needs "
-                         "complex I/Q samples")
+        raise RfsdfError(f"{bin_paths[0]}: real-sampled capture (rlAdcOutCfg_t.fmt.b2AdcOutFmt 0): rfsdf's model "
+                         "needs complex I/Q samples")
     try:
-        layout = _layout(chirp, lanes or geometry.board.lanes)
+        layout = _layout(chirp, lanes or chirp.lanes or geometry.board.lanes)
     except ValueError as exc:
-        raise RfsdfError(f"{bin_path}: {exc}") from None
-    cube = read_bin(bin_path, layout)
+        raise RfsdfError(f"{bin_paths[0]}: {exc}") from None
+    cube = read_bin(bin_paths, layout)
     frames = len(cube)
     cube = cube.reshape(frames, chirp.loops, chirp.chirps_per_loop, chirp.rx, chirp.samples).mean(1)
     acquisition = geometry.acquisition(chirp, read_poses(poses, frames, chirp.frame_period_s))
     data = torch.from_numpy(np.conj(cube) if geometry.flip else cube).to(torch.complex128)
     data = data * _delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
-    return Measurements(acquisition, data, None, {"source": str(bin_path), "chip": geometry.board.name,
-                                                  "poses": str(poses)})
+    return Measurements(acquisition, data, None, {"source": ", ".join(map(str, bin_paths)),
+                                                  "chip": geometry.board.name, "poses": str(poses)})
 
 
 def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geometry: CaptureGeometry, *,
                      lanes: int | None = None) -> float:
     """Write ``measurements`` as the board would have captured them (the fixed delay and IF sign
-    applied, int16 counts) into ``folder``: ``adc_data.bin``, ``capture.mmwave.json`` and
-    ``cf.json``; returns the scale from data to counts. One loop a frame."""
+    applied, int16 counts) into ``folder``: ``adc_data.bin``, ``capture.mmwave.json``,
+    ``capture.setup.json`` and ``cf.json``; returns the scale from data to counts. One loop a
+    frame."""
     frequencies = measurements.acquisition.frequencies_hz
     if chirp.loops != 1 or not np.allclose(chirp.frequencies_hz(), frequencies.numpy(), rtol=0, atol=1.0):
         raise ValueError("chirp must have one loop and the measurements' frequencies")
@@ -100,5 +105,7 @@ def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geo
     lanes = lanes or geometry.board.lanes
     write_bin(folder / "adc_data.bin", cube * scale, _layout(chirp, lanes))
     write_mmwave_json(folder / "capture.mmwave.json", chirp)
+    write_setup_json(folder / "capture.setup.json", folder / "capture.mmwave.json", [folder / "adc_data.bin"],
+                     geometry.board.name)
     write_cf_json(folder / "cf.json", lanes)
     return scale
