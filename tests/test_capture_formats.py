@@ -383,3 +383,90 @@ def test_a_cf_json_and_pose_files_written_by_hand_are_read(tmp_path):
     (tmp_path / "arm.csv").write_text("time_s,x_m,y_m,z_m\n10.0,0,0,0\n10.1,0.1,0,0.2\n")
     frames = read_poses(tmp_path / "arm.csv", 3, frame_period_s=0.05)
     assert frames == pytest.approx(np.array([[0, 0, 0], [0.05, 0, 0.1], [0.1, 0, 0.2]]))
+
+
+def _turn(angle_rad):
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_geraf_view_folders_read_back_what_was_written(tmp_path):
+    """Two turntable angles of an IWR1443 raster written as GeRaF's view folders (rows of one
+    Tx and one Rx, positions in the radar's frame, TI's 0.15 m added) read back as the
+    measurements, to the precision of their complex64 samples."""
+    from rfsdf.radar.acquisition import Measurements
+    from rfsdf.radar.formats.geraf import read_geraf, write_geraf
+
+    geometry = CaptureGeometry(board("iwr1443"))
+    turns = np.stack([_turn(0.0), _turn(np.pi / 3)])
+    tx0 = np.concatenate([_scan() @ turns[0], _scan() @ turns[1]])  # in the object's frame
+    acquisition = geometry.acquisition(CHIRP, tx0)
+    bore = np.concatenate([np.tile(turn.T @ [0, 0, 1.0], (12, 1)) for turn in turns])
+    acquisition = type(acquisition)(acquisition.tx_m, acquisition.rx_m, acquisition.frequencies_hz,
+                                    torch.from_numpy(bore), 0.0, True)
+    data = SensingOperator(acquisition).forward(torch.tensor([[0.01, 0.0, 0.02]], dtype=torch.float64),
+                                                torch.ones(1, dtype=torch.complex128))
+    folders = write_geraf(tmp_path / "capture", Measurements(acquisition, data), turns)
+    assert [f.name for f in folders] == ["view_000", "view_001"]
+    assert np.load(folders[0] / "tpos.npy").shape == (48, 3) and np.load(folders[0] / "adcr.npy").shape == (48, 16)
+    back = read_geraf(tmp_path / "capture", CHIRP.frequencies_hz())
+    for name in ("tx_m", "rx_m", "boresight"):
+        assert torch.allclose(getattr(back.acquisition, name), getattr(acquisition, name), rtol=0, atol=1e-12), name
+    assert torch.allclose(back.data, data.to(back.data.dtype), rtol=1e-6, atol=0)  # complex64 data
+
+
+def test_a_geraf_view_written_by_hand_imports_as_the_operators_model(tmp_path):
+    """Not through rfsdf's writer: a point target on a turntable turned by 40 degrees, recorded
+    as GeRaF's back-projection expects, exp(-j 2 pi f (d_tx + d_rx + 0.15 m) / c) / (d_tx d_rx),
+    each row one Rx; read in the object's frame, it is the operator's model of the unturned
+    target."""
+    from rfsdf.radar.formats.geraf import read_geraf
+
+    turn = _turn(np.radians(40))
+    target = np.array([0.004, -0.003, 0.01])
+    tx, rx = board_positions(board("iwr1443"), _scan(), np.array([0, 0, 1.0]), np.array([0, -1.0, 0]))
+    tpos, rpos = np.repeat(tx[:, 0], 4, axis=0), rx.reshape(-1, 3)  # rows: position-major, then Rx
+    seen = turn @ target  # where the turned target is in the radar's frame
+    d_tx, d_rx = np.linalg.norm(tpos - seen, axis=1), np.linalg.norm(rpos - seen, axis=1)
+    f = CHIRP.frequencies_hz()
+    adc = np.exp(-2j * np.pi * f * (d_tx + d_rx + 0.15)[:, None] / SPEED_OF_LIGHT) / (d_tx * d_rx)[:, None]
+    view = tmp_path / "angle_40"
+    view.mkdir()
+    for name, value in (("tpos", tpos), ("rpos", rpos), ("adcr", adc.real), ("adci", adc.imag),
+                        ("rotation", np.radians(40))):
+        np.save(view / f"{name}.npy", value)
+    imported = read_geraf(view, f)
+    assert imported.acquisition.shape == (12, 1, 4, 16)
+    model = SensingOperator(imported.acquisition).forward(torch.from_numpy(target[None]),
+                                                          torch.ones(1, dtype=torch.complex128))
+    assert float(((imported.data - model).abs() / model.abs()).max()) < 1e-6  # complex64 data
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda v: np.save(v / "tpos.npy", np.full((48, 3), np.nan)), "tpos.npy: contains NaN or Inf"),
+    (lambda v: np.save(v / "adcr.npy", np.zeros((48, 8))), r"adcr.npy and adci.npy must be \(M, K\) = \(48, 16\)"),
+    (lambda v: (v / "rotation.npy").unlink(), "rotation.npy: cannot read as a numeric .npy"),
+    (lambda v: np.save(v / "rotation.npy", np.eye(2)), "rotation.npy: expected a 3 x 3 rotation matrix"),
+    (lambda v: np.save(v / "tpos.npy", np.repeat(np.arange(9.0), [4, 4, 4, 4, 4, 4, 4, 4, 16])[:, None] * [1, 0, 0]),
+     r"tpos.npy: frames \(rows sharing a Tx\) hold 4 to 16 rows"),
+])
+def test_rfsdf_import_refuses_a_bad_geraf_view_in_one_line(tmp_path, change, message):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.radar.acquisition import Measurements
+    from rfsdf.radar.formats.geraf import write_geraf
+
+    acquisition = CaptureGeometry(board("iwr1443")).acquisition(CHIRP, _scan())
+    data = torch.ones(acquisition.shape, dtype=torch.complex128)
+    view = write_geraf(tmp_path / "capture", Measurements(acquisition, data), _turn(0.0)[None])[0]
+    write_mmwave_json(tmp_path / "capture.mmwave.json", CHIRP)
+    args = ["import", str(tmp_path / "capture"), "--config", str(tmp_path / "capture.mmwave.json"),
+            "--out", str(tmp_path / "data.h5")]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    (tmp_path / "data.h5").unlink()
+    change(view)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+    assert re.search(message, result.output), result.output
+    assert not (tmp_path / "data.h5").exists()

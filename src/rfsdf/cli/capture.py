@@ -10,7 +10,7 @@ import click
 
 from .app import main, one_line_errors, refuse_overwriting_inputs
 
-FORMATS = ("auto", "hdf5", "dca1000")
+FORMATS = ("auto", "hdf5", "dca1000", "geraf")
 _SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000", ".json": "dca1000"}  # .json: a setup.json
 
 
@@ -28,6 +28,12 @@ def _vector(text: str, option: str) -> tuple[float, float, float]:
 def _capture_format(capture: Path, name: str) -> str:
     if name != "auto":
         return name
+    if capture.is_dir():
+        from ..radar.formats.geraf import is_geraf
+
+        if is_geraf(capture):
+            return "geraf"
+        raise ValueError(f"{capture}: a folder, but not GeRaF's (view folders holding tpos.npy); pass --format")
     try:
         return _SUFFIXES[capture.suffix.lower()]
     except KeyError:
@@ -35,17 +41,17 @@ def _capture_format(capture: Path, name: str) -> str:
                          f"({', '.join(FORMATS[1:])})") from None
 
 
-def _ti_inputs(capture: Path, configs: tuple[Path, ...]):
-    """The .bin files, chirp, lanes (None: not given) and recorded device of a DCA1000 capture.
-    ``capture`` is a .bin, or mmWave Studio's *.setup.json naming its .bin files and config;
-    each --config an *.mmwave.json, a *.setup.json or a DCA1000 CLI cf.json. An explicit
-    *.mmwave.json wins over a setup's ``configUsed``."""
+def _ti_inputs(capture: Path | None, configs: tuple[Path, ...]):
+    """The .bin files, chirp, lanes (None: not given) and recorded device of a TI capture.
+    ``capture`` is a .bin, mmWave Studio's *.setup.json naming its .bin files and config, or
+    None (only the chirp is wanted); each --config an *.mmwave.json, a *.setup.json or a
+    DCA1000 CLI cf.json. An explicit *.mmwave.json wins over a setup's ``configUsed``."""
     from ..errors import RfsdfError
     from ..radar.formats.dca1000 import read_cf_json
     from ..radar.formats.mmwave_studio import read_mmwave_json, read_setup_json
 
-    setup_capture = capture.suffix.lower() == ".json"
-    bins, chirp, lanes, setup = None if setup_capture else (capture,), None, None, None
+    setup_capture = capture is not None and capture.suffix.lower() == ".json"
+    bins, chirp, lanes, setup = None if setup_capture or capture is None else (capture,), None, None, None
     for path in ((capture,) if setup_capture else ()) + configs:
         try:
             keys = json.loads(path.read_text())
@@ -64,7 +70,7 @@ def _ti_inputs(capture: Path, configs: tuple[Path, ...]):
     if chirp is None and setup is not None:
         chirp = read_mmwave_json(setup.config)
     if chirp is None:
-        raise RfsdfError("--config: a DCA1000 capture needs its mmWave Studio *.mmwave.json (or *.setup.json)")
+        raise RfsdfError("--config: a TI capture needs its mmWave Studio *.mmwave.json (or *.setup.json)")
     return bins, chirp, lanes, setup.device if setup is not None else ""
 
 
@@ -72,42 +78,53 @@ def _ti_inputs(capture: Path, configs: tuple[Path, ...]):
 @click.argument("capture", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
 @click.option("--format", "format_name", type=click.Choice(FORMATS), default="auto", show_default=True,
-              help="auto: by the name (.h5 hdf5; .bin, or mmWave Studio's .setup.json, dca1000).")
+              help="auto: by the name (.h5 hdf5; .bin, or mmWave Studio's .setup.json, dca1000; a folder "
+                   "of GeRaF views geraf).")
 @click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
-              help="dca1000: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the DCA1000 "
-                   "CLI's cf.json (lanes).")
+              help="dca1000, geraf: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the "
+                   "DCA1000 CLI's cf.json (lanes).")
 @click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): "
               "iwr1443, awr1843, iwr6843; default: the setup.json's mmWaveDevice.")
 @click.option("--poses", type=click.Path(path_type=Path), default=None,
               help="dca1000: CSV of Tx0 positions, x_m,y_m,z_m a frame or time_s,x_m,y_m,z_m interpolated at the frames.")
-@click.option("--boresight", default="0,0,1", show_default=True, help="dca1000: the board's boresight X,Y,Z.")
+@click.option("--boresight", default="0,0,1", show_default=True,
+              help="dca1000, geraf: the board's boresight X,Y,Z (geraf: in the turntable's rest frame).")
 @click.option("--rx-axis", default="0,-1,0", show_default=True,
               help="dca1000: the direction X,Y,Z from the board's Tx0 to its Rx.")
 @click.option("--range-delay", "range_delay_m", type=float, default=None,
-              help="dca1000: the board's fixed range delay [m] to undo (default: the chip's, 0.15 for TI).")
+              help="dca1000, geraf: the fixed range delay [m] to undo (default: the chip's, 0.15 for TI; "
+                   "geraf 0.15).")
 @click.option("--conjugate/--no-conjugate", default=None,
-              help="Conjugate the IF (default: the chip's sign for dca1000, none for hdf5).")
+              help="Conjugate the IF (default: the chip's sign for dca1000, none for hdf5 and geraf).")
 @one_line_errors
 def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, ...], chip: str | None,
                poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
                conjugate: bool | None):
-    """Convert a real capture into a measurements file: rfsdf's HDF5 layout, or a TI DCA1000
-    .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file
-    (each frame a view; layouts in docs/reference/formats.md)."""
+    """Convert a real capture into a measurements file: rfsdf's HDF5 layout; a TI DCA1000
+    .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file;
+    or GeRaF's view folders with the chirp's config (each frame a view; layouts in
+    docs/reference/formats.md)."""
     from ..radar import import_fmcw, write_measurements
 
     refuse_overwriting_inputs(out, capture, *configs, poses)
     kind = _capture_format(capture, format_name)
+    if range_delay_m is not None and not math.isfinite(range_delay_m):
+        raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
     if kind == "hdf5":
         measurements = import_fmcw(capture, conjugate=bool(conjugate))
+    elif kind == "geraf":
+        from ..radar.formats.geraf import GERAF_RANGE_DELAY_M, read_geraf
+
+        chirp = _ti_inputs(None, configs)[1]
+        measurements = read_geraf(capture, chirp.frequencies_hz(), boresight=_vector(boresight, "--boresight"),
+                                  range_delay_m=GERAF_RANGE_DELAY_M if range_delay_m is None else range_delay_m,
+                                  conjugate=bool(conjugate))
     else:
         from ..radar.boards import BOARDS, board
         from ..radar.formats.ti_capture import CaptureGeometry, import_ti_capture
 
         if poses is None:
             raise ValueError(f"{capture}: a DCA1000 capture needs --poses")
-        if range_delay_m is not None and not math.isfinite(range_delay_m):
-            raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
         bins, chirp, lanes, device = _ti_inputs(capture, configs)
         if chip is None and device not in BOARDS:
             raise ValueError(f"{capture}: a DCA1000 capture needs --chip (its setup names "
