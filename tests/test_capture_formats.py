@@ -437,6 +437,20 @@ def test_a_geraf_view_written_by_hand_imports_as_the_operators_model(tmp_path):
         np.save(view / f"{name}.npy", value)
     imported = read_geraf(view, f)
     assert imported.acquisition.shape == (12, 1, 4, 16)
+    (tmp_path / "radar.toml").write_text(  # the same chirp as an rfsdf radar's FMCW waveform, through the CLI
+        f"name = 'geraf'\n[waveform]\nkind = 'fmcw'\nstart_hz = {float(f[0])!r}\nslope_hz_per_s = {CHIRP.slope_hz_per_s!r}\n"
+        f"sample_rate_hz = {CHIRP.sample_rate_hz!r}\nsamples = {CHIRP.samples}\n[array]\nkind = 'ti_3tx4rx'\n"
+        "[views]\ndistance_m = 0.2\nazimuths_per_ring = [1]\nelevations_rad = [0.0]\n")
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.radar import read_measurements
+
+    result = CliRunner().invoke(main, ["import", str(view), "--config", str(tmp_path / "radar.toml"),
+                                       "--out", str(tmp_path / "data.h5")])
+    assert result.exit_code == 0, result.output
+    assert torch.allclose(read_measurements(tmp_path / "data.h5").acquisition.frequencies_hz,
+                          imported.acquisition.frequencies_hz, rtol=1e-12, atol=0)
     model = SensingOperator(imported.acquisition).forward(torch.from_numpy(target[None]),
                                                           torch.ones(1, dtype=torch.complex128))
     assert float(((imported.data - model).abs() / model.abs()).max()) < 1e-6  # complex64 data

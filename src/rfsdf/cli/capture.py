@@ -74,6 +74,17 @@ def _ti_inputs(capture: Path | None, configs: tuple[Path, ...]):
     return bins, chirp, lanes, setup.device if setup is not None else ""
 
 
+def _frequencies(configs: tuple[Path, ...]):
+    """(K,) [Hz] the samples' frequencies from --config: an rfsdf radar TOML's waveform, else the
+    chirp of mmWave Studio's *.mmwave.json or *.setup.json."""
+    tomls = [path for path in configs if path.suffix.lower() == ".toml"]
+    if tomls:
+        from ..radar import load_radar
+
+        return load_radar(tomls[-1]).frequencies_hz
+    return _ti_inputs(None, configs)[1].frequencies_hz()
+
+
 @main.command("import")
 @click.argument("capture", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
@@ -82,7 +93,7 @@ def _ti_inputs(capture: Path | None, configs: tuple[Path, ...]):
                    "of GeRaF views geraf).")
 @click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
               help="dca1000, geraf: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the "
-                   "DCA1000 CLI's cf.json (lanes).")
+                   "DCA1000 CLI's cf.json (lanes); geraf: or an rfsdf radar TOML (its waveform's frequencies).")
 @click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): "
               "iwr1443, awr1843, iwr6843; default: the setup.json's mmWaveDevice.")
 @click.option("--poses", type=click.Path(path_type=Path), default=None,
@@ -115,8 +126,7 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
     elif kind == "geraf":
         from ..radar.formats.geraf import GERAF_RANGE_DELAY_M, read_geraf
 
-        chirp = _ti_inputs(None, configs)[1]
-        measurements = read_geraf(capture, chirp.frequencies_hz(), boresight=_vector(boresight, "--boresight"),
+        measurements = read_geraf(capture, _frequencies(configs), boresight=_vector(boresight, "--boresight"),
                                   range_delay_m=GERAF_RANGE_DELAY_M if range_delay_m is None else range_delay_m,
                                   conjugate=bool(conjugate))
     else:
