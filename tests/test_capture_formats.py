@@ -484,3 +484,15 @@ def test_rfsdf_import_refuses_a_bad_geraf_view_in_one_line(tmp_path, change, mes
     assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
     assert re.search(message, result.output), result.output
     assert not (tmp_path / "data.h5").exists()
+
+
+def test_a_geraf_capture_larger_than_memory_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    from rfsdf.radar.acquisition import Measurements
+    from rfsdf.radar.formats.geraf import read_geraf, write_geraf
+
+    acquisition = CaptureGeometry(board("iwr1443")).acquisition(CHIRP, _scan())
+    write_geraf(tmp_path, Measurements(acquisition, torch.ones(acquisition.shape, dtype=torch.complex128)),
+                _turn(0.0)[None])
+    monkeypatch.setattr("rfsdf.limits.available_memory_bytes", lambda: 1000)
+    with pytest.raises(RfsdfError, match=r"the capture \(1 views, 48 rows x 16 samples\) need about"):
+        read_geraf(tmp_path, CHIRP.frequencies_hz())

@@ -24,6 +24,7 @@ import torch
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ...limits import require_memory
 from ..acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 
 __all__ = ["GERAF_RANGE_DELAY_M", "is_geraf", "read_geraf", "write_geraf"]
@@ -51,6 +52,14 @@ def _rotation(value: np.ndarray, where: str) -> np.ndarray:
     if value.shape != (3, 3) or not np.allclose(value @ value.T, np.eye(3), atol=1e-6):
         raise RfsdfError(f"{where}: expected a 3 x 3 rotation matrix or an angle [rad], got shape {value.shape}")
     return value
+
+
+def _rows(view: Path) -> int:
+    """M, the rows of a view, from its tpos.npy's header (without reading the samples)."""
+    try:
+        return len(np.load(view / "tpos.npy", mmap_mode="r", allow_pickle=False))
+    except (OSError, ValueError, TypeError) as exc:
+        raise RfsdfError(f"{view / 'tpos.npy'}: cannot read as a numeric .npy ({exc})") from None
 
 
 def _load(view: Path) -> dict[str, np.ndarray]:
@@ -98,6 +107,8 @@ def read_geraf(folder, frequencies_hz: np.ndarray, *, boresight=(0.0, 0.0, 1.0),
                          "rotation.npy)")
     f = np.asarray(frequencies_hz, float)
     bore = np.asarray(boresight, float) / np.linalg.norm(boresight)
+    rows = sum(_rows(view) for view in views)
+    require_memory(4 * 16 * rows * len(f), f"{folder}: the capture ({len(views)} views, {rows} rows x {len(f)} samples)")
     parts = []
     for view in views:
         arrays = _load(view)
