@@ -25,7 +25,8 @@ import torch
 from ...atomic import atomic_path
 from ...errors import RfsdfError
 from ...limits import require_memory
-from ..acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
+from ..acquisition import Acquisition, Measurements
+from .ti_capture import delay_phase
 
 __all__ = ["GERAF_RANGE_DELAY_M", "is_geraf", "read_geraf", "write_geraf"]
 
@@ -119,8 +120,7 @@ def read_geraf(folder, frequencies_hz: np.ndarray, *, boresight=(0.0, 0.0, 1.0),
     acquisition = Acquisition(torch.from_numpy(tx), torch.from_numpy(rx), torch.from_numpy(f),
                               torch.from_numpy(bores), 0.0, True)
     data = torch.from_numpy(np.conj(adc) if conjugate else adc).to(torch.complex128)
-    data = data * torch.polar(torch.ones_like(acquisition.frequencies_hz),
-                              2 * torch.pi * acquisition.frequencies_hz * range_delay_m / SPEED_OF_LIGHT)
+    data = data * delay_phase(acquisition.frequencies_hz, range_delay_m).conj()
     return Measurements(acquisition, data, None, {"source": str(folder), "format": "geraf"})
 
 
@@ -135,8 +135,7 @@ def write_geraf(folder, measurements: Measurements, rotations: np.ndarray, *,
     rotations = np.asarray(rotations, float)
     if t != 1 or v % len(rotations):
         raise ValueError(f"need views of one Tx, as many for each of the {len(rotations)} rotations; got {v} x {t} Tx")
-    delay = torch.polar(torch.ones_like(acquisition.frequencies_hz),
-                        -2 * torch.pi * acquisition.frequencies_hz * range_delay_m / SPEED_OF_LIGHT)
+    delay = delay_phase(acquisition.frequencies_hz, range_delay_m)
     adc = (measurements.data.to(torch.complex128) * delay).numpy().reshape(len(rotations), -1, k)
     tx = np.repeat(acquisition.tx_m.numpy(), r, axis=1).reshape(len(rotations), -1, 3)
     rx = acquisition.rx_m.numpy().reshape(len(rotations), -1, 3)

@@ -24,7 +24,7 @@ from .dca1000 import AdcLayout, read_bin, write_bin, write_cf_json
 from .mmwave_studio import ChirpConfig, write_mmwave_json, write_setup_json
 from .poses import read_poses
 
-__all__ = ["CaptureGeometry", "import_ti_capture", "write_ti_capture"]
+__all__ = ["CaptureGeometry", "delay_phase", "import_ti_capture", "write_ti_capture"]
 
 FULL_SCALE = 30_000  # int16 counts the writer gives the largest sample
 
@@ -57,7 +57,7 @@ class CaptureGeometry:
                            torch.from_numpy(bore), 0.0, True)
 
 
-def _delay_phase(frequencies_hz: torch.Tensor, delay_m: float) -> torch.Tensor:
+def delay_phase(frequencies_hz: torch.Tensor, delay_m: float) -> torch.Tensor:
     """exp(-j 2 pi f d / c) (K,): a fixed extra path ``delay_m`` as a phase."""
     return torch.polar(torch.ones_like(frequencies_hz), -2 * torch.pi * frequencies_hz * delay_m / SPEED_OF_LIGHT)
 
@@ -84,7 +84,7 @@ def import_ti_capture(bin_paths, chirp: ChirpConfig, geometry: CaptureGeometry, 
     cube = cube.reshape(frames, chirp.loops, chirp.chirps_per_loop, chirp.rx, chirp.samples).mean(1)
     acquisition = geometry.acquisition(chirp, read_poses(poses, frames, chirp.frame_period_s))
     data = torch.from_numpy(np.conj(cube) if geometry.flip else cube).to(torch.complex128)
-    data = data * _delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
+    data = data * delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
     return Measurements(acquisition, data, None, {"source": ", ".join(map(str, bin_paths)),
                                                   "chip": geometry.board.name, "poses": str(poses)})
 
@@ -98,7 +98,7 @@ def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geo
     frequencies = measurements.acquisition.frequencies_hz
     if chirp.loops != 1 or not np.allclose(chirp.frequencies_hz(), frequencies.numpy(), rtol=0, atol=1.0):
         raise ValueError("chirp must have one loop and the measurements' frequencies")
-    data = measurements.data.to(torch.complex128) * _delay_phase(frequencies, geometry.delay_m)
+    data = measurements.data.to(torch.complex128) * delay_phase(frequencies, geometry.delay_m)
     cube = (data.conj() if geometry.flip else data).resolve_conj().numpy()
     scale = FULL_SCALE / max(np.abs(cube.real).max(), np.abs(cube.imag).max(), np.finfo(float).tiny)
     folder = Path(folder)
