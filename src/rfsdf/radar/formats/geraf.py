@@ -24,6 +24,7 @@ import torch
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ...geometry.transforms import rotation_matrix
 from ...limits import require_memory
 from ..acquisition import Acquisition, Measurements
 from .ti_capture import delay_phase
@@ -48,8 +49,7 @@ def is_geraf(path) -> bool:
 def _rotation(value: np.ndarray, where: str) -> np.ndarray:
     """(3, 3) from a rotation matrix or an angle [rad] about +z."""
     if value.size == 1:
-        c, s = np.cos(float(value)), np.sin(float(value))
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return rotation_matrix((0.0, 0.0, 1.0), float(value)).numpy()
     if value.shape != (3, 3) or not np.allclose(value @ value.T, np.eye(3), atol=1e-6):
         raise RfsdfError(f"{where}: expected a 3 x 3 rotation matrix or an angle [rad], got shape {value.shape}")
     return value

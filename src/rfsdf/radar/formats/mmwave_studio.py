@@ -1,5 +1,5 @@
 """TI mmWave Studio's ``*.mmwave.json`` (the chirp, channels and frame of a capture) and
-``*.setup.json`` (which config, which captured files, which device, the DCA1000's lanes).
+``*.setup.json`` (which config, which captured files, which device).
 
 Read from ``mmWaveDevices[0].rfConfig`` (some versions write one device as an object rather
 than a list): ``rlProfiles[0].rlProfileCfg_t`` (start frequency [GHz], slope [MHz/us],
