@@ -24,6 +24,18 @@ CHIRP = ChirpConfig(start_hz=77e9, slope_hz_per_s=70.15e12, sample_rate_hz=10e6,
                     loops=1, frames=0, frame_period_s=3e-3, lanes=4)
 
 
+def _refused_in_one_line(args, message, out):
+    """``rfsdf ARGS`` exits 2 with one line matching ``message`` and writes no ``out``."""
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+    assert re.search(message, result.output), result.output
+    assert not out.exists()
+
+
 def _int16(path, values):
     np.asarray(values, dtype="<i2").tofile(path)
 
@@ -284,19 +296,12 @@ def test_rfsdf_import_reads_a_dca1000_capture(tmp_path):
     (lambda a, d: a.__setitem__(a.index("0,-1,0"), "0,nan,1"), "--rx-axis: expected three finite numbers"),
 ])
 def test_rfsdf_import_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, change, message):
-    from click.testing import CliRunner
-
-    from rfsdf.cli import main
-
     _written_capture(tmp_path)
     args = ["import", str(tmp_path / "adc_data.bin"), "--config", str(tmp_path / "capture.mmwave.json"),
             "--config", str(tmp_path / "cf.json"), "--chip", "iwr1443", "--poses", str(tmp_path / "poses.csv"),
             "--rx-axis", "0,-1,0", "--out", str(tmp_path / "data.h5")]
     change(args, tmp_path)
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
-    assert re.search(message, result.output), result.output
-    assert not (tmp_path / "data.h5").exists()
+    _refused_in_one_line(args, message, tmp_path / "data.h5")
 
 
 def test_rfsdf_import_reads_a_capture_through_its_setup_json(tmp_path):
@@ -480,10 +485,7 @@ def test_rfsdf_import_refuses_a_bad_geraf_view_in_one_line(tmp_path, change, mes
     assert CliRunner().invoke(main, args).exit_code == 0
     (tmp_path / "data.h5").unlink()
     change(view)
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
-    assert re.search(message, result.output), result.output
-    assert not (tmp_path / "data.h5").exists()
+    _refused_in_one_line(args, message, tmp_path / "data.h5")
 
 
 def test_a_geraf_capture_larger_than_memory_is_refused_before_it_is_read(tmp_path, monkeypatch):
@@ -496,3 +498,130 @@ def test_a_geraf_capture_larger_than_memory_is_refused_before_it_is_read(tmp_pat
     monkeypatch.setattr("rfsdf.limits.available_memory_bytes", lambda: 1000)
     with pytest.raises(RfsdfError, match=r"the capture \(1 views, 48 rows x 16 samples\) need about"):
         read_geraf(tmp_path, CHIRP.frequencies_hz())
+
+
+# UT Dallas' 3-D MIMO-SAR example capture (IWR1443, three Tx, four Rx), with 16 samples
+UTD_CHIRP = ChirpConfig(start_hz=77e9, slope_hz_per_s=63.343e12, sample_rate_hz=9121e3, samples=16,
+                        adc_start_s=6e-6, idle_s=0.0, ramp_end_s=0.0, rx_mask=0xF, tx_mask=0b111, complex=True,
+                        chirps_per_loop=3, loops=1, frames=6, frame_period_s=8e-3)
+UTD_TARGET = np.array([0.004, 0.006, 0.25])  # 25 cm in front of the scan plane (their frame: z depth)
+
+
+def _utd_parameters(num_tx=3, steps=(0.9e-3, 1.9e-3)) -> dict:
+    """sensorParams and sarParams as their MATLAB structs (a 2 x 3 raster: two rows, three columns)."""
+    return {"sensorParams": {"Start_Freq_GHz": 77.0, "Slope_MHzperus": 63.343, "Sampling_Rate_ksps": 9121.0,
+                             "Adc_Start_Time_us": 6.0, "Samples_per_Chirp": 16, "Num_TX": num_tx,
+                             "RxToEnable": np.array([1.0, 2, 3, 4]), "Frame_Repetition_Period_ms": 8.0},
+            "sarParams": {"Num_horizontalScan": 3, "Num_verticalScan": 2, "Vertical_stepSize_mm": steps[1] * 1e3,
+                          "Platform_Speed_mmps": steps[0] * 1e3 / 8e-3}}
+
+
+def _utd_by_hand(folder, *, raw=None, hdf5=False, **parameters):
+    """A capture of UTD_TARGET as UT Dallas' files hold it, not through rfsdf's writer: their
+    antenna positions (getAntennaLocations.m: Rx k at (0, k lambda/2, 0), Tx1 at (0, 3 lambda/2
+    + 5 mm, 0), Tx2 lambda/2 left of and lambda above it, Tx3 2 lambda above it; lambda at 79
+    GHz) moved so that Tx1 sits at the frame's position (h dx, v dy, 0), and TI's IF,
+    exp(+j 2 pi f (d_tx + d_rx + 0.15 m) / c) / (d_tx d_rx), channel Tx t Rx r at t 4 + r.
+    ``hdf5``: the files as MATLAB's v7.3 saves them (HDF5, axes reversed, complex compound).
+    Returns the Tx (V, 3, 3) and Rx (V, 4, 3) positions and the target's model data."""
+    import h5py
+    import scipy.io
+
+    variables = _utd_parameters(**parameters)
+    lam = SPEED_OF_LIGHT / 79e9
+    rx0 = np.array([[0.0, k * lam / 2, 0.0] for k in range(4)])
+    tx0 = np.array([[0.0, 1.5 * lam + 5e-3, 0.0], [-lam / 2, 2.5 * lam + 5e-3, 0.0], [0.0, 3.5 * lam + 5e-3, 0.0]])
+    sar = variables["sarParams"]
+    dx, dy = sar["Platform_Speed_mmps"] * 8e-6, sar["Vertical_stepSize_mm"] * 1e-3
+    v, h = np.meshgrid(np.arange(2), np.arange(3), indexing="ij")
+    frames = np.column_stack([h.ravel() * dx, v.ravel() * dy, np.zeros(6)])[:, None] - tx0[0]
+    tx, rx = frames + tx0, frames + rx0  # (6, 3, 3), (6, 4, 3)
+    d_tx = np.linalg.norm(tx - UTD_TARGET, axis=-1)[:, :, None, None]
+    d_rx = np.linalg.norm(rx - UTD_TARGET, axis=-1)[:, None, :, None]
+    f = UTD_CHIRP.frequencies_hz()
+    model = np.exp(-2j * np.pi * f * (d_tx + d_rx) / SPEED_OF_LIGHT) / (d_tx * d_rx)  # (V, T, R, K)
+    recorded = np.conj(model * np.exp(-2j * np.pi * f * 0.15 / SPEED_OF_LIGHT))
+    variables["rawData"] = recorded.transpose(1, 2, 0, 3).reshape(12, 2, 3, 16) if raw is None else raw
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, value in variables.items():
+        if not hdf5:
+            scipy.io.savemat(folder / f"{name}.mat", {name: value})
+            continue
+        with h5py.File(folder / f"{name}.mat", "w") as fh:
+            if isinstance(value, dict):
+                group = fh.create_group(name)
+                for key, item in value.items():
+                    group[key] = np.atleast_2d(np.asarray(item, float)).T
+            else:
+                compound = np.empty(value.shape[::-1], dtype=[("real", "<f8"), ("imag", "<f8")])
+                compound["real"], compound["imag"] = value.real.T, value.imag.T
+                fh[name] = compound
+    return tx, rx, model
+
+
+@pytest.mark.parametrize("hdf5", [False, True], ids=["v5", "v7.3"])
+def test_a_utd_capture_written_by_hand_imports_as_the_operators_model(tmp_path, hdf5):
+    """UT Dallas' layout, their antenna positions and TI's IF sign and delay, in MATLAB's v5 and
+    v7.3 files: read back, each frame a view of three Tx and four Rx at their positions, and the
+    data the operator's model of the target."""
+    from rfsdf.radar.formats.utd_mat import read_utd
+
+    tx, rx, model = _utd_by_hand(tmp_path / "capture", hdf5=hdf5)
+    imported = read_utd(tmp_path / "capture")
+    acq = imported.acquisition
+    assert acq.shape == (6, 3, 4, 16)
+    assert np.allclose(acq.tx_m.numpy(), tx, rtol=0, atol=1e-9) and np.allclose(acq.rx_m.numpy(), rx, rtol=0, atol=1e-9)
+    assert torch.allclose(acq.frequencies_hz, torch.from_numpy(UTD_CHIRP.frequencies_hz()), rtol=1e-12, atol=0)
+    operator = SensingOperator(acq).forward(torch.from_numpy(UTD_TARGET[None]), torch.ones(1, dtype=torch.complex128))
+    assert float(((imported.data - operator).abs() / operator.abs()).max()) < 1e-6  # complex64 data
+    assert np.allclose(imported.data.numpy(), model, rtol=1e-6, atol=0)
+
+
+def test_a_utd_capture_reads_back_what_was_written_with_its_calibration(tmp_path):
+    """rfsdf's writer, with a per-channel complex gain and delay offset undone in the raw data:
+    applying calData.mat and delayOffset.mat as calibrateDataFunction.m does recovers the
+    measurements (no fixed delay is undone on top of a delayOffset); without those files the
+    raw data differ by exactly that calibration."""
+    from rfsdf.radar.acquisition import Measurements
+    from rfsdf.radar.formats.utd_mat import read_utd, write_utd
+
+    frames = np.column_stack([np.tile(np.arange(3) * 0.9e-3, 2), np.repeat(np.arange(2) * 1.9e-3, 3), np.zeros(6)])
+    acquisition = CaptureGeometry(board("iwr1443")).acquisition(UTD_CHIRP, frames)
+    data = SensingOperator(acquisition).forward(torch.from_numpy(UTD_TARGET[None]), torch.ones(1, dtype=torch.complex128))
+    rng = np.random.default_rng(0)
+    gains = rng.uniform(0.5, 2, 12) * np.exp(2j * np.pi * rng.uniform(size=12))
+    delays = rng.uniform(0.5e-9, 1.5e-9, 12)  # [s], about the 0.15 m path's 1 ns
+    write_utd(tmp_path, Measurements(acquisition, data), UTD_CHIRP, (2, 3), (0.9e-3, 1.9e-3), calibration=(gains, delays))
+    back = read_utd(tmp_path)
+    for name in ("tx_m", "rx_m", "boresight", "frequencies_hz"):
+        assert torch.allclose(getattr(back.acquisition, name), getattr(acquisition, name), rtol=1e-12, atol=1e-12), name
+    assert torch.allclose(back.data, data.to(back.data.dtype), rtol=1e-6, atol=0)  # complex64 data
+    for name in ("calData.mat", "delayOffset.mat"):
+        (tmp_path / name).unlink()
+    raw = read_utd(tmp_path, range_delay_m=0.0)
+    beat = np.arange(16) * UTD_CHIRP.slope_hz_per_s / UTD_CHIRP.sample_rate_hz
+    calibration = (gains[:, None] * np.exp(-2j * np.pi * delays[:, None] * beat)).reshape(3, 4, 16)
+    assert np.allclose(raw.data.numpy() * np.conj(calibration), data.numpy(), rtol=1e-6, atol=0)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda f: (f / "sarParams.mat").unlink(), r"sarParams.mat: missing"),
+    (lambda f: _utd_by_hand(f, raw=np.zeros((12, 2, 3, 8))), r"rawData has shape \(12, 2, 3, 8\); .* = \(12, 2, 3, 16\)"),
+    (lambda f: _utd_by_hand(f, raw=np.full((12, 2, 3, 16), np.nan)), "rawData contains NaN or Inf"),
+    (lambda f: _utd_by_hand(f, num_tx=2), "Num_TX 2: which of the IWR1443's Tx fired"),
+    (lambda f: _utd_by_hand(f, steps=(0.9e-3, 0.0)), "the raster's steps must not be zero"),
+    (lambda f: (f / "calData.mat").write_bytes(b"not a MAT file"), "calData.mat: cannot read as a MATLAB file"),
+])
+def test_rfsdf_import_refuses_a_bad_utd_capture_in_one_line(tmp_path, change, message):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+
+    folder = tmp_path / "capture"
+    _utd_by_hand(folder)
+    args = ["import", str(folder), "--out", str(tmp_path / "data.h5")]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0 and "6 views of 3 Tx x 4 Rx, 16 samples" in result.output, result.output
+    (tmp_path / "data.h5").unlink()
+    change(folder)
+    _refused_in_one_line(args, message, tmp_path / "data.h5")

@@ -528,7 +528,20 @@ def test_a_fit_writes_no_progress_line_a_step_into_a_log(sphere_data, tmp_path, 
     assert capsys.readouterr().err.count("fit:") == 0
 
 
-def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path):
+@pytest.fixture
+def one_thread():
+    """torch at one thread for the test, the count restored after it: bit for bit is a
+    promise at a fixed thread count and kernel split; once (CI, stop 58), after the whole
+    suite had run before it on two threads, the resumed weights differed from the straight
+    run's in the eighth digit, which neither this file alone nor six straight runs in one
+    process with other allocations between them reproduced."""
+    default = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(default)
+
+
+def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path, one_thread):
     _, data = sphere_data
     problem = Problem(data, _grid(10), "data.h5")
     straight = Trainer(problem, _config(), tmp_path / "a").fit().field

@@ -10,7 +10,7 @@ import click
 
 from .app import main, one_line_errors, refuse_overwriting_inputs
 
-FORMATS = ("auto", "hdf5", "dca1000", "geraf")
+FORMATS = ("auto", "hdf5", "dca1000", "geraf", "utd-mat")
 _SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000", ".json": "dca1000"}  # .json: a setup.json
 
 
@@ -30,10 +30,14 @@ def _capture_format(capture: Path, name: str) -> str:
         return name
     if capture.is_dir():
         from ..radar.formats.geraf import is_geraf
+        from ..radar.formats.utd_mat import is_utd
 
         if is_geraf(capture):
             return "geraf"
-        raise ValueError(f"{capture}: a folder, but not GeRaF's (view folders holding tpos.npy); pass --format")
+        if is_utd(capture):
+            return "utd-mat"
+        raise ValueError(f"{capture}: a folder, but neither GeRaF's (view folders holding tpos.npy) nor UT Dallas' "
+                         "(rawData.mat); pass --format")
     try:
         return _SUFFIXES[capture.suffix.lower()]
     except KeyError:
@@ -90,7 +94,7 @@ def _frequencies(configs: tuple[Path, ...]):
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
 @click.option("--format", "format_name", type=click.Choice(FORMATS), default="auto", show_default=True,
               help="auto: by the name (.h5 hdf5; .bin, or mmWave Studio's .setup.json, dca1000; a folder "
-                   "of GeRaF views geraf).")
+                   "of GeRaF views geraf; a folder holding rawData.mat utd-mat).")
 @click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
               help="dca1000, geraf: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the "
                    "DCA1000 CLI's cf.json (lanes); geraf: or an rfsdf radar TOML (its waveform's frequencies).")
@@ -103,18 +107,18 @@ def _frequencies(configs: tuple[Path, ...]):
 @click.option("--rx-axis", default="0,-1,0", show_default=True,
               help="dca1000: the direction X,Y,Z from the board's Tx0 to its Rx.")
 @click.option("--range-delay", "range_delay_m", type=float, default=None,
-              help="dca1000, geraf: the fixed range delay [m] to undo (default: the chip's, 0.15 for TI; "
-                   "geraf 0.15).")
+              help="dca1000, geraf, utd-mat: the fixed range delay [m] to undo (default: the chip's, 0.15 for "
+                   "TI; geraf 0.15; utd-mat 0.15, or 0 with a delayOffset.mat).")
 @click.option("--conjugate/--no-conjugate", default=None,
-              help="Conjugate the IF (default: the chip's sign for dca1000, none for hdf5 and geraf).")
+              help="Conjugate the IF (default: the chip's sign for dca1000 and utd-mat, none for hdf5 and geraf).")
 @one_line_errors
 def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, ...], chip: str | None,
                poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
                conjugate: bool | None):
     """Convert a real capture into a measurements file: rfsdf's HDF5 layout; a TI DCA1000
     .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file;
-    or GeRaF's view folders with the chirp's config (each frame a view; layouts in
-    docs/reference/formats.md)."""
+    GeRaF's view folders with the chirp's config; or a UT Dallas MIMO-SAR folder of .mat
+    files (each frame a view; layouts in docs/reference/formats.md)."""
     from ..radar import import_fmcw, write_measurements
 
     refuse_overwriting_inputs(out, capture, *configs, poses)
@@ -123,6 +127,10 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
         raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
     if kind == "hdf5":
         measurements = import_fmcw(capture, conjugate=bool(conjugate))
+    elif kind == "utd-mat":
+        from ..radar.formats.utd_mat import read_utd
+
+        measurements = read_utd(capture, range_delay_m=range_delay_m, conjugate=conjugate)
     elif kind == "geraf":
         from ..radar.formats.geraf import GERAF_RANGE_DELAY_M, read_geraf
 
