@@ -173,6 +173,10 @@ class LossConfig(StrictModel):
             raise ValueError(f"each stage must end after the one before and the last at 1, got until = {ends}")
         return stages
 
+    def names(self) -> list[str]:
+        """Every data loss the fit uses: the stages', or ``data``."""
+        return [stage.data for stage in self.stages] or [self.data]
+
     def stage_at(self, fraction: float) -> str:
         """The data loss at ``fraction`` (0 to 1) of the steps."""
         if not self.stages:

@@ -70,13 +70,16 @@ class CoherentRenderer:
     spacing_m : the facets' marching-cubes cell, or the points' spacing (lambda/3 by default). shadows : trace them.
     dtype : float32, or float64 for gradient checks. smoothing_m : radius of the local mean
     taken of the surface velocity the loss asks for (``surface.smoothed_velocity``).
+    bands : also image each of this many equal sub-bands of the frequencies on its own
+    (``band_observed``, and ``__call__(bands=True)``), for a loss that compares sub-band
+    images (``recon/losses.py``, "split"); 1: the full band only.
     """
 
     def __init__(self, measurements: Measurements, grid: Grid, *, element_step: int = 1,
                  surface: str = "facets", spacing_m: float | None = None,
                  specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT,
                  shadows: bool = True, device="cpu", dtype: torch.dtype = torch.float32, smoothing_m: float = 0.0,
-                 progress: bool = False):
+                 bands: int = 1, progress: bool = False):
         if surface not in SURFACES:
             raise ValueError(f"unknown surface {surface!r}; known: {', '.join(SURFACES)}")
         self.surface = surface
@@ -100,6 +103,20 @@ class CoherentRenderer:
         ])
         self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
         self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
+        k = acq.shape[3]
+        if not 1 <= bands <= k:
+            raise ValueError(f"bands must be 1 to the {k} frequencies, got {bands}")
+        # (B, K): sub-band b holds frequencies [b K / B, (b + 1) K / B) (sorted as the data's axis)
+        order = torch.argsort(acq.frequencies_hz)
+        self.band_masks = torch.zeros(bands, k, dtype=torch.bool)
+        for b, part in enumerate(order.tensor_split(bands)):
+            self.band_masks[b, part] = True
+        self.band_masks = self.band_masks.to(self.device)
+        self.band_observed = None  # (V, B, N) complex, in the units of self.observed
+        if bands > 1:
+            self.band_observed = torch.stack([
+                self._band_images(v, data.data[v:v + 1].to(self.device), self.voxels) for v in range(len(self.operators))
+            ]) / self.observed_peak
         self.centre_frequency_hz = acq.center_frequency_hz
         self.wavenumber_rad_m = acq.wavenumber_rad_m
         self.po_spectrum = po_spectrum(acq.frequencies_hz).to(self.device)  # (K,), the data's last axis
@@ -117,6 +134,17 @@ class CoherentRenderer:
         norms = self.column_norms_sq[view, voxel_index]
         seen = norms > 0
         return torch.where(seen, back_projection / torch.where(seen, norms, 1.0), 0.0)
+
+    def _band_images(self, view: int, y: torch.Tensor, targets: torch.Tensor, voxel_index=slice(None)) -> torch.Tensor:
+        """(B, X) the normalised MF image of data ``y`` (1, T, R, K) from each sub-band's
+        frequencies alone at ``targets`` (X, 3): A_b^H y_b / ||A_b,q||^2, where ||A_b,q||^2 is
+        the band's share K_b / K of the column norm (every phasor has modulus 1)."""
+        masks = self.band_masks.to(y.device)
+        share = masks.sum(1).to(self.column_norms_sq.dtype) / masks.shape[1]
+        return torch.stack([
+            self._normalise(view, self.operators[view].adjoint(y * mask, targets), voxel_index) / part
+            for mask, part in zip(masks, share)
+        ])
 
     def refresh(self, sdf, voxel_values_m: torch.Tensor, generator: torch.Generator) -> None:
         """New surface candidates of ``sdf`` and their facing/shadow masks in every view.
@@ -202,11 +230,12 @@ class CoherentRenderer:
         return (*cand.projected(), None)
 
     def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True,
-                 probabilities: torch.Tensor | None = None) -> torch.Tensor:
+                 probabilities: torch.Tensor | None = None, bands: bool = False) -> torch.Tensor:
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
         ``geometry=False``: f as it was at the last refresh (the caller holds it fixed since),
         differentiable in the reflection only, and f is not evaluated at all. ``probabilities``:
-        :meth:`surface_materials`, when the caller has them already."""
+        :meth:`surface_materials`, when the caller has them already. ``bands``: each sub-band's
+        image instead, (len(views), B, X), as ``band_observed``."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         points, normals, area, corners = self.surface_geometry(field, geometry=geometry)
@@ -226,14 +255,16 @@ class CoherentRenderer:
             return lambda cos: mixture_fresnel(cos, probabilities[idx], eps).to(complex_dtype)
 
         targets = self.voxels[voxel_index]
+        shape = (len(self.band_masks), len(voxel_index)) if bands else (len(voxel_index),)
         images = []
         for v in views.tolist():
             idx = self.lit[v].nonzero().squeeze(1)
             if len(idx) == 0:
-                images.append(torch.zeros(len(voxel_index), dtype=torch.promote_types(points.dtype, torch.complex64),
+                images.append(torch.zeros(shape, dtype=torch.promote_types(points.dtype, torch.complex64),
                                           device=self.device))
                 continue
             y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
                                   None if corners is None else corners[idx])
-            images.append(self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
+            images.append(self._band_images(v, y, targets, voxel_index) if bands
+                          else self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

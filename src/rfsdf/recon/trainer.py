@@ -33,7 +33,7 @@ from ..radar.clean import CleanResult, clean_image
 from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import DATA_LOSSES, eikonal_loss, material_cross_entropy, material_entropy, uses_phase
+from .losses import DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, uses_phase
 from .render import RENDERERS
 from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
@@ -156,7 +156,8 @@ class Trainer:
         self.renderer = RENDERERS.get(rc.renderer)(
             problem.measurements, problem.grid, element_step=rc.element_step, surface=rc.surface,
             spacing_m=rc.spacing_m,
-            shadows=rc.shadows, device=self.device, smoothing_m=rc.surface_smoothing_m, progress=progress)
+            shadows=rc.shadows, device=self.device, smoothing_m=rc.surface_smoothing_m,
+            bands=max(bands_of(DATA_LOSSES.get(name)) for name in config.loss.names()), progress=progress)
         self.observed = self.renderer.observed.abs()  # (V, N) amplitude, peak 1
         self.probabilities = data_voxel_probabilities(self.observed, config.sampling.data_focus)
         self.step = 0
@@ -272,9 +273,11 @@ class Trainer:
                                           self.device)
         frozen = self.step < cfg.train.geometry_delay_steps
         probabilities = self.surface_materials(geometry=not frozen)
-        predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities)
         data_loss = DATA_LOSSES.get(cfg.loss.stage_at(self.step / cfg.train.steps))
-        observed = self.renderer.observed[views][:, voxels]
+        bands = bands_of(data_loss) > 1
+        predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities,
+                                  bands=bands)
+        observed = self.renderer.band_observed[views][:, :, voxels] if bands else self.renderer.observed[views][:, voxels]
         known_gain = self.problem.gain is not None and probabilities is not None
         if known_gain:  # into the units of the observed images (peak 1)
             predicted = predicted * (self.problem.gain / self.renderer.observed_peak)

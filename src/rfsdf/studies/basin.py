@@ -211,14 +211,14 @@ class _Surface:
 
 
 class SurfaceLosses:
-    """Each data loss (amplitude, complex) of a surface f against the data, every view, at the
-    voxels where some view's image is above 2 % of its peak: rendered with the true materials
-    and the radar's gain, as the fits are."""
+    """Each data loss (amplitude, complex, split) of a surface f against the data, every view,
+    at the voxels where some view's image is above 2 % of its peak: rendered with the true
+    materials and the radar's gain, as the fits are."""
 
     def __init__(self, problem: Problem, config: ReconConfig, known: TrueMaterials):
         rc = config.render
         self.renderer = CoherentRenderer(problem.measurements, problem.grid, element_step=rc.element_step,
-                                         surface=rc.surface, device=config.train.device)
+                                         surface=rc.surface, device=config.train.device, bands=2)
         self.known, self.gain = known, problem.gain
         amplitude = self.renderer.observed.abs()
         self.voxels = (amplitude > 0.02).any(0).nonzero().squeeze(1)
@@ -229,11 +229,12 @@ class SurfaceLosses:
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             classes = self.known(renderer.candidates.anchors)
             probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
-            predicted = renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
-                                 probabilities=probabilities) * (self.gain / renderer.observed_peak)
-        observed = renderer.observed[:, self.voxels]
-        return {name: float(DATA_LOSSES.get(name)(predicted, observed, fit_gain=False))
-                for name in ("amplitude", "complex")}
+            images = {bands: renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
+                                      probabilities=probabilities, bands=bands) * (self.gain / renderer.observed_peak)
+                      for bands in (False, True)}
+        observed = {False: renderer.observed[:, self.voxels], True: renderer.band_observed[:, :, self.voxels]}
+        return {name: float(DATA_LOSSES.get(name)(images[name == "split"], observed[name == "split"], fit_gain=False))
+                for name in ("amplitude", "complex", "split")}
 
 
 def plot(result: Result, path) -> None:
