@@ -520,6 +520,24 @@ def test_f_stays_frozen_while_gamma_adapts_first(sphere_data, tmp_path):
     assert all(r.eikonal == 0 for r in trainer.log[:3]) and all(r.eikonal > 0 for r in trainer.log[3:])
 
 
+def test_the_geometrys_learning_rate_decays_over_every_step_or_from_its_release(sphere_data, tmp_path):
+    """Freed at step 6 of 10 (lr 1e-3 -> 1e-4, exponential): "shared" takes the one decay over
+    every step up where it is, 1e-3 x 0.1^0.6; "from_release" starts the whole decay there."""
+    _, data = sphere_data
+    rates = {}
+    for schedule in ("shared", "from_release"):
+        config = _config(steps=10, geometry_delay=0.6, geometry_schedule=schedule)
+        trainer = Trainer(Problem(data, _grid(10)), config, tmp_path / schedule)
+        geometry, reflectance = trainer.scheduler.lr_lambdas[:2]
+        rates[schedule] = [geometry(step) for step in range(10)]
+        assert [reflectance(step) for step in (0, 6)] == pytest.approx([1.0, 0.1 ** 0.6])
+    assert rates["shared"][:6] == rates["from_release"][:6] == [0.0] * 6
+    assert rates["shared"][6:] == pytest.approx([0.1 ** (step / 10) for step in range(6, 10)])
+    assert rates["from_release"][6:] == pytest.approx([0.1 ** (step / 4) for step in range(4)])
+    with pytest.raises(ValueError, match="geometry_schedule"):
+        _config(geometry_schedule="later")
+
+
 def test_a_fit_writes_no_progress_line_a_step_into_a_log(sphere_data, tmp_path, capsys):
     """stderr is not a terminal here, as in a batch job: a short fit writes no bar at all
     (a forced redraw per step once wrote a line per step into the demo's log)."""
@@ -677,7 +695,8 @@ def test_split_spectrum_interferograms_see_the_range_that_each_views_phase_absor
 
 def test_the_renderers_sub_band_images_add_up_to_its_full_band_image(sphere_data):
     """Each half of the band imaged alone, weighted by its share of the frequencies, sums to
-    the full-band image, predicted and observed alike; the true ball's predicted halves match
+    the full-band image, predicted and observed alike (the observed one from a renderer of the
+full band alone); the true ball's predicted halves match
     the data's (correlation 0.999, as the full band's)."""
     _, data = sphere_data
     truth = _Ball(RADIUS)
@@ -687,7 +706,9 @@ def test_the_renderers_sub_band_images_add_up_to_its_full_band_image(sphere_data
         renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
         full, halves = renderer(truth, views, voxels), renderer(truth, views, voxels, bands=True)
     torch.testing.assert_close(halves.mean(1), full, rtol=1e-4, atol=1e-5 * float(full.abs().max()))
-    torch.testing.assert_close(renderer.band_observed.mean(1), renderer.observed, rtol=1e-4, atol=1e-5)
+    full_band = CoherentRenderer(data, _grid(10))  # its observed images from the whole band at once
+    torch.testing.assert_close(renderer.observed, full_band.observed, rtol=1e-4, atol=1e-5)
+    torch.testing.assert_close(renderer.band_observed.mean(1), full_band.observed, rtol=1e-4, atol=1e-5)
     observed = renderer.band_observed.reshape(renderer.num_views, -1)
     correlation = (halves.reshape(renderer.num_views, -1).conj() * observed).sum(1).abs() / (
         halves.reshape(renderer.num_views, -1).norm(dim=1) * observed.norm(dim=1))

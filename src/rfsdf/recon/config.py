@@ -209,6 +209,10 @@ class TrainConfig(StrictModel):
     # the fit drifts 1.8 mm without the delay, 0.4 mm with 0.4; from the carved, blanked warm
     # start 0.7 scores 4.82 mm over three seeds against 4.92 at 0.4 (docs/results/quality-history.md)
     geometry_delay: float = Field(0.7, ge=0, lt=1)
+    # the geometry's schedule: "shared", the one decay over every step (so f, freed at 0.7,
+    # moves at lr 2e-5 -> 1e-5), or "from_release", the whole decay lr -> lr_end over the
+    # steps f is free
+    geometry_schedule: Literal["shared", "from_release"] = "shared"
     weight_decay: NonNegativeFloat = 0.0
     checkpoint_every: PositiveInt = 50
     seed: int = 0

@@ -97,12 +97,6 @@ class CoherentRenderer:
         require_image_memory(acq.shape[0], grid, "the fit's images")
         self.voxels = grid.points(device=self.device, dtype=dtype)  # (N, 3)
         self.column_norms_sq = torch.stack([op.column_norms_sq(self.voxels) for op in self.operators])  # (V, N)
-        observed = torch.stack([
-            self._normalise(v, op.adjoint(data.data[v:v + 1].to(self.device), self.voxels))
-            for v, op in enumerate(progress_bar(self.operators, desc="observed images", enabled=progress))
-        ])
-        self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
-        self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
         k = acq.shape[3]
         if not 1 <= bands <= k:
             raise ValueError(f"bands must be 1 to the {k} frequencies, got {bands}")
@@ -112,11 +106,20 @@ class CoherentRenderer:
         for b, part in enumerate(order.tensor_split(bands)):
             self.band_masks[b, part] = True
         self.band_masks = self.band_masks.to(self.device)
-        self.band_observed = None  # (V, B, N) complex, in the units of self.observed
+        self.band_shares = self.band_masks.sum(1).to(dtype) / k  # (B,) K_b / K
+        views = progress_bar(range(len(self.operators)), desc="observed images", enabled=progress)
         if bands > 1:
-            self.band_observed = torch.stack([
-                self._band_images(v, data.data[v:v + 1].to(self.device), self.voxels) for v in range(len(self.operators))
-            ]) / self.observed_peak
+            # one adjoint per band: the full band's image is their sum
+            band_observed = torch.stack([self._band_images(v, data.data[v:v + 1].to(self.device), self.voxels)
+                                         for v in views])  # (V, B, N)
+            observed = self.full_band(band_observed)
+        else:
+            observed = torch.stack([self._normalise(v, self.operators[v].adjoint(data.data[v:v + 1].to(self.device),
+                                                                                 self.voxels)) for v in views])
+        self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
+        self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
+        # (V, B, N) complex, in the units of self.observed; None for the full band only
+        self.band_observed = band_observed / self.observed_peak if bands > 1 else None
         self.centre_frequency_hz = acq.center_frequency_hz
         self.wavenumber_rad_m = acq.wavenumber_rad_m
         self.po_spectrum = po_spectrum(acq.frequencies_hz).to(self.device)  # (K,), the data's last axis
@@ -139,12 +142,15 @@ class CoherentRenderer:
         """(B, X) the normalised MF image of data ``y`` (1, T, R, K) from each sub-band's
         frequencies alone at ``targets`` (X, 3): A_b^H y_b / ||A_b,q||^2, where ||A_b,q||^2 is
         the band's share K_b / K of the column norm (every phasor has modulus 1)."""
-        masks = self.band_masks.to(y.device)
-        share = masks.sum(1).to(self.column_norms_sq.dtype) / masks.shape[1]
         return torch.stack([
-            self._normalise(view, self.operators[view].adjoint(y * mask, targets), voxel_index) / part
-            for mask, part in zip(masks, share)
+            self._normalise(view, self.operators[view].adjoint(y * mask, targets), voxel_index) / share
+            for mask, share in zip(self.band_masks.to(y.device), self.band_shares)
         ])
+
+    def full_band(self, band_images: torch.Tensor) -> torch.Tensor:
+        """(..., X) the full band's image from its sub-bands' (..., B, X): their sum weighted
+        by each band's share K_b / K of the frequencies (the adjoint is linear in the data)."""
+        return torch.einsum("...bx,b->...x", band_images, self.band_shares.to(band_images.dtype))
 
     def refresh(self, sdf, voxel_values_m: torch.Tensor, generator: torch.Generator) -> None:
         """New surface candidates of ``sdf`` and their facing/shadow masks in every view.

@@ -150,7 +150,10 @@ class Trainer:
         schedule = SCHEDULES.get(tc.schedule)
         decay = lambda step: schedule(step, tc.steps, 1.0, tc.lr_end / tc.lr)  # noqa: E731
         # Gamma alone first: a surface the data do not show should dim before it moves.
-        delayed = lambda step: decay(step) if step >= tc.geometry_delay_steps else 0.0  # noqa: E731
+        freed = tc.geometry_delay_steps
+        released = ((lambda step: schedule(step - freed, tc.steps - freed, 1.0, tc.lr_end / tc.lr))
+                    if tc.geometry_schedule == "from_release" else decay)
+        delayed = lambda step: released(step) if step >= freed else 0.0  # noqa: E731
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = RENDERERS.get(rc.renderer)(

@@ -229,9 +229,9 @@ class SurfaceLosses:
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             classes = self.known(renderer.candidates.anchors)
             probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
-            images = {bands: renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
-                                      probabilities=probabilities, bands=bands) * (self.gain / renderer.observed_peak)
-                      for bands in (False, True)}
+            halves = renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
+                              probabilities=probabilities, bands=True) * (self.gain / renderer.observed_peak)
+        images = {True: halves, False: renderer.full_band(halves)}  # one rendering for every loss
         observed = {False: renderer.observed[:, self.voxels], True: renderer.band_observed[:, :, self.voxels]}
         return {name: float(DATA_LOSSES.get(name)(images[name == "split"], observed[name == "split"], fit_gain=False))
                 for name in ("amplitude", "complex", "split")}
