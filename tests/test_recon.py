@@ -635,7 +635,7 @@ def test_a_continuation_names_its_losses_in_order_and_refuses_others():
     stages = {"loss": {"stages": [{"data": "amplitude", "until": 0.4}, {"data": "complex", "until": 1.0}]}}
     loss = ReconConfig.model_validate(stages).loss
     assert [loss.stage_at(f) for f in (0.0, 0.39, 0.4, 0.99, 1.0)] == ["amplitude"] * 2 + ["complex"] * 3
-    assert ReconConfig().loss.stage_at(0.5) == "amplitude"  # no stages: loss.data throughout
+    assert ReconConfig.model_validate({"loss": {"data": "complex"}}).loss.stage_at(0.9) == "complex"  # throughout
     with pytest.raises(Exception, match="unknown data loss 'phase'; known: "):
         ReconConfig.model_validate({"loss": {"stages": [{"data": "phase", "until": 1.0}]}})
     for until in ([0.6, 0.4, 1.0], [0.5, 0.9]):
@@ -644,6 +644,23 @@ def test_a_continuation_names_its_losses_in_order_and_refuses_others():
     for until in (0.0, 1.5):
         with pytest.raises(Exception, match="until"):
             ReconConfig.model_validate({"loss": {"stages": [{"data": "amplitude", "until": until}]}})
+
+
+def test_the_default_continuation_is_amplitude_while_f_is_frozen_then_split():
+    """Neither loss.data nor loss.stages given: amplitude until train.geometry_delay, then
+    split; with no delay split throughout; loss.data alone is that loss at every step; a
+    written config reads back as itself."""
+    default = ReconConfig()
+    assert [(s.data, s.until) for s in default.loss.stages] == [("amplitude", 0.7), ("split", 1.0)]
+    assert default.loss.stage_at(default.train.geometry_delay_steps / default.train.steps) == "split"
+    assert default.loss.stage_at((default.train.geometry_delay_steps - 1) / default.train.steps) == "amplitude"
+    delayed = ReconConfig.model_validate({"train": {"geometry_delay": 0.4}})
+    assert [(s.data, s.until) for s in delayed.loss.stages] == [("amplitude", 0.4), ("split", 1.0)]
+    assert [s.data for s in ReconConfig.model_validate({"train": {"geometry_delay": 0.0}}).loss.stages] == ["split"]
+    assert ReconConfig.model_validate({"loss": {"data": "amplitude"}}).loss.names() == ["amplitude"]
+    assert ReconConfig.model_validate(delayed.model_dump()) == delayed
+    with pytest.raises(Exception, match="geometry_delay"):
+        ReconConfig.model_validate({"train": {"geometry_delay": "soon"}})
 
 
 def test_the_complex_loss_forgives_each_views_phase_and_gain_but_not_a_phase_error():

@@ -148,6 +148,7 @@ class LossStage(StrictModel):
 
 class LossConfig(StrictModel):
     data: str = "amplitude"  # the data loss of every step, when no stages are given
+    # (ReconConfig's default, when neither is given, is the continuation amplitude -> split)
     # a continuation: data losses in turn, each until its share of the steps (the last until
     # 1), e.g. amplitude while the surface is too far for the phase, then "complex" (recon/losses.py)
     stages: list[LossStage] = []
@@ -271,6 +272,24 @@ class ReconConfig(StrictModel):
     sampling: SamplingConfig = SamplingConfig()
     train: TrainConfig = TrainConfig()
     calibration: CalibrationConfig = CalibrationConfig()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_continuation(cls, values):
+        """Neither ``loss.data`` nor ``loss.stages`` given: the amplitude loss while f is frozen
+        (``train.geometry_delay``), then split-spectrum interferometry, which sees position,
+        once it moves (issue 51; docs/results/demo-quality.md, "The split stage by default")."""
+        if not isinstance(values, dict) or not isinstance(values.get("loss", {}), dict):
+            return values
+        loss = values.get("loss", {})
+        if "data" in loss or "stages" in loss:
+            return values
+        train = values.get("train", {})
+        delay = train.get("geometry_delay", 0.7) if isinstance(train, dict) else getattr(train, "geometry_delay", None)
+        if isinstance(delay, bool) or not isinstance(delay, int | float) or not 0 <= delay < 1:
+            return values  # train.geometry_delay's own validation says what is wrong with it
+        stages = [{"data": "amplitude", "until": delay}] if delay > 0 else []
+        return {**values, "loss": {**loss, "stages": [*stages, {"data": "split", "until": 1.0}]}}
 
     @model_validator(mode="after")
     def _reference_is_a_class(self) -> ReconConfig:
