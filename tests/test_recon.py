@@ -713,8 +713,8 @@ def test_split_spectrum_interferograms_see_the_range_that_each_views_phase_absor
 def test_the_renderers_sub_band_images_add_up_to_its_full_band_image(sphere_data):
     """Each half of the band imaged alone, weighted by its share of the frequencies, sums to
     the full-band image, predicted and observed alike (the observed one from a renderer of the
-full band alone); the true ball's predicted halves match
-    the data's (correlation 0.999, as the full band's)."""
+    full band alone); the true ball's predicted halves match the data's (correlation 0.999,
+    as the full band's)."""
     _, data = sphere_data
     truth = _Ball(RADIUS)
     renderer = CoherentRenderer(data, _grid(10), bands=2)

@@ -148,12 +148,11 @@ class Trainer:
                   {"params": head.parameters() if head is not None else [], "lr": tc.lr * tc.material_lr_scale}]
         self.optimizer = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay)
         schedule = SCHEDULES.get(tc.schedule)
-        decay = lambda step: schedule(step, tc.steps, 1.0, tc.lr_end / tc.lr)  # noqa: E731
+        decay = lambda step, total=tc.steps: schedule(step, total, 1.0, tc.lr_end / tc.lr)  # noqa: E731
         # Gamma alone first: a surface the data do not show should dim before it moves.
         freed = tc.geometry_delay_steps
-        released = ((lambda step: schedule(step - freed, tc.steps - freed, 1.0, tc.lr_end / tc.lr))
-                    if tc.geometry_schedule == "from_release" else decay)
-        delayed = lambda step: released(step) if step >= freed else 0.0  # noqa: E731
+        origin = freed if tc.geometry_schedule == "from_release" else 0  # where f's decay starts
+        delayed = lambda step: decay(step - origin, tc.steps - origin) if step >= freed else 0.0  # noqa: E731
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = RENDERERS.get(rc.renderer)(
