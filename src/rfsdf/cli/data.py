@@ -44,25 +44,31 @@ def _image(measurements, lower_m, upper_m, voxel_m: float, out_image: Path, out_
     from ..geometry import Grid
     from ..radar import matched_filter
     from ..radar.imaging import imaging_method, require_image_memory
-    from ..radar.scan_imaging import planar_scan, scan_matched_filter
+    from ..radar.scan_imaging import lattice_grid, planar_scan, scan_matched_filter, scan_views_matched_filter
 
+    acq = measurements.acquisition
     grid = Grid.from_voxel(lower_m, upper_m, voxel_m)
-    count = f"({measurements.acquisition.num_measurements} measurements)"
+    count = f"({acq.num_measurements} measurements)"
     if method in ("auto", "scan"):
         try:
-            raster = planar_scan(measurements.acquisition)
+            if acq.scans is not None:  # one view a scan: each by FFT on the lattice they share
+                scan = planar_scan(acq.coherent_view(0))[0]
+                image = scan_views_matched_filter(measurements, lattice_grid(acq, lower_m, upper_m), device=device)
+            else:
+                raster = planar_scan(acq)
+                scan, image = raster[0], scan_matched_filter(measurements, grid, raster=raster, device=device)
         except ValueError as exc:
             if method == "scan":
                 raise ValueError(f"--method scan: {exc}") from None
         else:
-            scan = raster[0]
-            click.echo(f"matched filter of a {scan.shape[0]} x {scan.shape[1]} raster scan "
-                       f"({scan.steps_m[0] * 1e3:.3g} x {scan.steps_m[1] * 1e3:.3g} mm steps) {count} as one coherent "
-                       f"view, by FFT on the raster's lattice, {voxel_m * 1e3:.2f} mm deep, on {device}")
-            image = scan_matched_filter(measurements, grid, raster=raster, device=device)
-            return _write_image(image, out_image, out_png, "matched-filter power (the scan, coherent)")
-    require_image_memory(measurements.acquisition.shape[0], grid)
-    chosen = imaging_method(measurements.acquisition, method, device)
+            step = image.grid.voxel_m
+            click.echo(f"matched filter of {acq.num_views} x a {scan.shape[0]} x {scan.shape[1]} raster scan "
+                       f"({scan.steps_m[0] * 1e3:.3g} x {scan.steps_m[1] * 1e3:.3g} mm steps) {count}, each one coherent "
+                       f"view, by FFT on the raster's lattice ({step[0] * 1e3:.3g} x {step[1] * 1e3:.3g} x "
+                       f"{step[2] * 1e3:.3g} mm voxels) on {device}")
+            return _write_image(image, out_image, out_png, "matched-filter power (each scan coherent)")
+    require_image_memory(acq.num_views, grid)
+    chosen = imaging_method(acq, method, device)
     why = {"fast": "range-profile back-projection", "exact": "the sensing operator's adjoint"}[chosen]
     click.echo(f"matched filter on {grid.shape} voxels of {voxel_m * 1e3:.2f} mm {count}: {chosen} ({why}"
                f"{', chosen by --method auto' if method == 'auto' else ''}) on {device}")

@@ -1,15 +1,19 @@
 """What a measurement set is: where each Tx and Rx was, at which frequencies, and the samples.
 
-Layout used everywhere: V views (poses of the radar, or frames of a capture), T
+Layout used everywhere: V frames (poses of the radar, or frames of a capture), T
 transmitters, R receivers, K frequencies; ``data[v, i, j, k]`` is the sample of Tx i to
-Rx j at frequency k in view v. Positions are in the scene frame, already placed by the pose.
+Rx j at frequency k in frame v. Positions are in the scene frame, already placed by the pose.
+
+A view is what is imaged coherently: by default each frame (a MIMO snapshot), or, with
+``scans``, every frame of one scan (a board moved over a synthetic aperture, each frame
+pairing only its own Tx and Rx, one scan a view at each turntable angle).
 """
 
 from __future__ import annotations
 
 import math
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import torch
 
@@ -26,6 +30,8 @@ class Acquisition:
     frequencies_hz : (K,) float64 [Hz]. boresight : (V, 3) unit vectors, scene frame.
     pattern_exponent : antenna amplitude pattern cos^n(angle from boresight); 0 = isotropic.
     spreading : whether the 1/(d_tx d_rx) spreading factor is applied.
+    scans : (V,) int64, the view (scan) 0..S-1 each frame belongs to, every number used; None:
+    every frame is its own view.
     """
 
     tx_m: torch.Tensor
@@ -34,6 +40,7 @@ class Acquisition:
     boresight: torch.Tensor
     pattern_exponent: float = 0.0
     spreading: bool = True
+    scans: torch.Tensor | None = None
 
     def __post_init__(self):
         tx, rx, f, b = self.tx_m, self.rx_m, self.frequencies_hz, self.boresight
@@ -50,11 +57,34 @@ class Acquisition:
             if not torch.isfinite(value).all():
                 raise ValueError(f"{name} contains NaN or Inf")
             object.__setattr__(self, name, value.detach().to(torch.float64))
+        if self.scans is not None:
+            scans = torch.as_tensor(self.scans).detach().cpu()
+            if scans.shape != (tx.shape[0],) or scans.is_floating_point() or scans.is_complex():
+                raise ValueError(f"scans must be (V,) = ({tx.shape[0]},) integers, got {tuple(scans.shape)} {scans.dtype}")
+            if len(scans) and (scans.min() < 0 or len(torch.unique(scans)) != int(scans.max()) + 1):
+                raise ValueError("scans must number the views 0, 1, ... with every number used")
+            object.__setattr__(self, "scans", scans.to(torch.int64))
 
     @property
     def shape(self) -> tuple[int, int, int, int]:
         """(V, T, R, K)."""
         return (self.tx_m.shape[0], self.tx_m.shape[1], self.rx_m.shape[1], len(self.frequencies_hz))
+
+    @property
+    def num_views(self) -> int:
+        """Views imaged coherently: the scans, or the frames."""
+        return self.shape[0] if self.scans is None else int(self.scans.max()) + 1
+
+    def frames(self, view: int) -> torch.Tensor:
+        """(F,) int64 indices of the frames of view ``view``."""
+        if not 0 <= view < self.num_views:
+            raise IndexError(f"view {view} of {self.num_views}")
+        return torch.tensor([view]) if self.scans is None else torch.nonzero(self.scans == view).squeeze(1)
+
+    def coherent_view(self, view: int) -> Acquisition:
+        """The frames of view ``view`` alone, as one acquisition (``scans`` None)."""
+        sub = self.view(self.frames(view))
+        return replace(sub, scans=None)
 
     @property
     def num_measurements(self) -> int:
@@ -81,11 +111,13 @@ class Acquisition:
         """k = 2 pi / lambda at the centre frequency [rad/m]."""
         return 2 * math.pi / self.wavelength_m
 
-    def view(self, index: int | slice) -> Acquisition:
-        """The acquisition restricted to some views."""
+    def view(self, index: int | slice | torch.Tensor) -> Acquisition:
+        """The acquisition restricted to some frames (an int, a slice or (F,) indices); their
+        scans renumbered in order."""
         sel = slice(index, index + 1) if isinstance(index, int) else index
+        scans = None if self.scans is None else torch.unique(self.scans[sel], return_inverse=True)[1]
         return Acquisition(self.tx_m[sel], self.rx_m[sel], self.frequencies_hz, self.boresight[sel],
-                           self.pattern_exponent, self.spreading)
+                           self.pattern_exponent, self.spreading, scans)
 
     def thinned(self, step: int) -> Acquisition:
         """A sparse sub-array: 1/``step`` of the Tx and of the Rx, step^2 fewer pairs.
@@ -97,7 +129,7 @@ class Acquisition:
         if step < 1:
             raise ValueError(f"element step must be >= 1, got {step}")
         return Acquisition(self.tx_m[:, _kept(self.tx_m.shape[1], step)], self.rx_m[:, _kept(self.rx_m.shape[1], step)],
-                           self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading)
+                           self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading, self.scans)
 
 
 @dataclass(frozen=True)

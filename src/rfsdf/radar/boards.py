@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import RfsdfError
 from .acquisition import SPEED_OF_LIGHT
 
-__all__ = ["Board", "BOARDS", "board", "board_positions"]
+__all__ = ["Board", "BOARDS", "board", "board_positions", "board_layout"]
 
 
 @dataclass(frozen=True)
@@ -86,3 +86,11 @@ def board_positions(board: Board, tx0_m: np.ndarray, boresight: np.ndarray, rx_a
     to_scene = lambda uw: np.asarray(uw)[:, :1] * u + np.asarray(uw)[:, 1:] * w  # noqa: E731
     tx0 = np.asarray(tx0_m, float)[:, None]
     return tx0 + to_scene(tx), tx0 + to_scene(rx)
+
+
+def board_layout(name: str, tx_mask: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Tx (T, 3) and Rx (R, 3) [m] of board ``name`` in the radar frame (array in x-y,
+    boresight +z): Tx0 at the origin, the Rx along +x (u), its Tx that ``tx_mask`` enables."""
+    tx, rx = board_positions(board(name, "array.board"), np.zeros((1, 3)), np.array([0.0, 0.0, 1.0]),
+                             np.array([1.0, 0.0, 0.0]), tx_mask)
+    return tx[0], rx[0]

@@ -125,8 +125,9 @@ def _back_project(profiles, path_min, step, tx, rx, boresight, exponent, spreadi
 
 
 def fast_adjoint(acquisition: Acquisition, data: torch.Tensor, points: torch.Tensor, *,
-                 oversampling: int = DEFAULT_OVERSAMPLING, progress: bool = False) -> torch.Tensor:
-    """A^H y per view at ``points`` (Q, 3) [m] by range-profile back-projection: (V, Q) complex64.
+                 oversampling: int = DEFAULT_OVERSAMPLING, summed: bool = False, progress: bool = False) -> torch.Tensor:
+    """A^H y per frame at ``points`` (Q, 3) [m] by range-profile back-projection: (V, Q)
+    complex64, or with ``summed`` their sum over the frames (1, Q) (a scan's coherent image).
 
     data : (V, T, R, K) complex. Agrees with ``SensingOperator.adjoint(..., per_view=True)``
     to the interpolation error (relative ~ 1 / oversampling^2).
@@ -136,7 +137,8 @@ def fast_adjoint(acquisition: Acquisition, data: torch.Tensor, points: torch.Ten
     pts = points.detach().cpu().double().numpy()
     freqs = acquisition.frequencies_hz.numpy()
     k_c = float(2 * math.pi * freqs.mean() / SPEED_OF_LIGHT)
-    out = np.zeros((acquisition.shape[0], len(pts)), np.complex128)
+    out = np.zeros((1 if summed else acquisition.shape[0], len(pts)), np.complex128)
+    frame = np.zeros(len(pts), np.complex128)
     lower, upper = pts.min(0), pts.max(0)
     for v in progress_bar(range(acquisition.shape[0]), desc="fast A^H y", enabled=progress):
         tx, rx = acquisition.tx_m[v].numpy(), acquisition.rx_m[v].numpy()
@@ -144,8 +146,11 @@ def fast_adjoint(acquisition: Acquisition, data: torch.Tensor, points: torch.Ten
         path_max = _farthest(tx, lower, upper).max() + _farthest(rx, lower, upper).max()
         profiles, step = range_profiles(data[v].detach().cpu().numpy(), freqs, path_min, path_max, oversampling)
         parts = np.ascontiguousarray(np.stack([profiles.real, profiles.imag], axis=-1))
+        target = frame if summed else out[v]
         _back_project(parts, path_min - step, step, tx, rx, acquisition.boresight[v].numpy(),
-                      float(acquisition.pattern_exponent), bool(acquisition.spreading), k_c, pts, out[v])
+                      float(acquisition.pattern_exponent), bool(acquisition.spreading), k_c, pts, target)
+        if summed:
+            out[0] += frame
     return torch.from_numpy(out.astype(np.complex64))
 
 

@@ -14,6 +14,7 @@ import torch
 
 from ..geometry import Grid
 from ..limits import require_memory
+from ..progress import progress_bar
 from .acquisition import Acquisition, Measurements
 from .fast_imaging import DEFAULT_OVERSAMPLING, fast_adjoint
 from .operator import SensingOperator
@@ -74,25 +75,42 @@ class Image:
 
 def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "auto",
                    oversampling: int = DEFAULT_OVERSAMPLING, device=None, progress: bool = False) -> Image:
-    """Back-project ``measurements`` onto the voxel centres of ``grid``.
+    """Back-project ``measurements`` onto the voxel centres of ``grid``, an image per view (a
+    frame, or all frames of a scan summed coherently: ``Acquisition.scans``).
 
     ``method``: "exact" (the sensing operator's adjoint), "fast" (range-profile
     back-projection, :mod:`rfsdf.radar.fast_imaging`, relative error ~1e-3 at the default
     ``oversampling``; CPU) or "auto" (:func:`imaging_method`). ``device``: where the exact
-    adjoint runs (None: CPU); the image comes back on the CPU.
+    adjoint runs (None: CPU); the image comes back on the CPU. A planar raster scan images
+    faster by FFT (:func:`rfsdf.radar.scan_imaging.scan_views_matched_filter`).
     """
-    require_image_memory(measurements.acquisition.shape[0], grid)
-    op = SensingOperator(measurements.acquisition)
+    acq = measurements.acquisition
+    require_image_memory(acq.num_views, grid)
     points = grid.points(device=device)
-    with torch.no_grad():
-        if imaging_method(measurements.acquisition, method, device) == "fast":
-            numerator = fast_adjoint(measurements.acquisition, measurements.data, points.cpu(),
-                                     oversampling=oversampling, progress=progress).to(points.device)
-        else:
-            numerator = op.adjoint(measurements.data.to(device), points, per_view=True, progress=progress)
-        norms = op.column_norms_sq(points, per_view=True)
-    shape = (measurements.acquisition.shape[0], *grid.shape)
+    fast = imaging_method(acq, method, device) == "fast"
+    if acq.scans is None:
+        numerator, norms = _back_projection(acq, measurements.data, points, fast, oversampling, True, progress)
+    else:
+        parts = [_back_projection(acq.coherent_view(v), measurements.data[acq.frames(v)], points, fast, oversampling,
+                                  False, False)
+                 for v in progress_bar(range(acq.num_views), desc="scans", enabled=progress)]
+        numerator, norms = (torch.stack(t) for t in zip(*parts))
+    shape = (acq.num_views, *grid.shape)
     return Image(grid, safe_divide(numerator, norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
+
+
+def _back_projection(acq: Acquisition, data: torch.Tensor, points: torch.Tensor, fast: bool, oversampling: int,
+                     per_view: bool, progress: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    """A^H y and ||A_q||^2 at ``points``, (V, Q) per frame or (Q,) summed over the frames."""
+    op = SensingOperator(acq)
+    with torch.no_grad():
+        if fast:
+            numerator = fast_adjoint(acq, data, points.cpu(), oversampling=oversampling, summed=not per_view,
+                                     progress=progress).to(points.device)
+            numerator = numerator if per_view else numerator[0]
+        else:
+            numerator = op.adjoint(data.to(points.device), points, per_view=per_view, progress=progress)
+        return numerator, op.column_norms_sq(points, per_view=per_view)
 
 
 def safe_divide(numerator: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:

@@ -4,8 +4,9 @@ Schema (format_version 1), all arrays in SI units:
 
 measurements file, attribute ``format = "rfsdf.measurements"``:
   tx_m (V, T, 3) f8, rx_m (V, R, 3) f8, frequencies_hz (K,) f8, boresight (V, 3) f8,
-  data (V, T, R, K) c8; attributes pattern_exponent, spreading, noise_std (NaN if unknown),
-  and ``meta_*`` strings (scene, radar, ...).
+  data (V, T, R, K) c8, optionally scans (V,) i8 (the view each frame belongs to, when views
+  are scans); attributes pattern_exponent, spreading, noise_std (NaN if unknown), and
+  ``meta_*`` strings (scene, radar, ...).
 image file, attribute ``format = "rfsdf.image"``:
   per_view (V, nx, ny, nz) c8, column_norms_sq (V, nx, ny, nz) f4, lower_m (3,), upper_m (3,).
 """
@@ -75,6 +76,8 @@ def write_measurements(path, m: Measurements) -> Path:
             fh.attrs[f"meta_{key}"] = value
         for name in ("tx_m", "rx_m", "frequencies_hz", "boresight"):
             fh[name] = getattr(acq, name).numpy()
+        if acq.scans is not None:
+            fh["scans"] = acq.scans.numpy()
         fh.create_dataset("data", data=m.data.numpy(), compression="gzip", compression_opts=1)
     return Path(path)
 
@@ -83,12 +86,14 @@ def read_measurements(path) -> Measurements:
     """Read a measurements file; RfsdfError naming the file and field on any problem."""
     with _open(path, _MEASUREMENTS) as fh:
         arrays = {n: _read(fh, n, path) for n in ("tx_m", "rx_m", "frequencies_hz", "boresight", "data")}
+        scans = _read(fh, "scans", path) if "scans" in fh else None
         attrs = dict(fh.attrs)
     if not np.isfinite(arrays["data"].view(np.float32)).all():
         raise RfsdfError(f"{path}: data: contains NaN or Inf")
     try:
         acq = Acquisition(*(torch.from_numpy(np.asarray(arrays[n], np.float64)) for n in ("tx_m", "rx_m", "frequencies_hz", "boresight")),
-                          pattern_exponent=float(attrs.get("pattern_exponent", 0.0)), spreading=bool(attrs.get("spreading", True)))
+                          pattern_exponent=float(attrs.get("pattern_exponent", 0.0)), spreading=bool(attrs.get("spreading", True)),
+                          scans=None if scans is None else torch.from_numpy(np.asarray(scans)))
         noise = float(attrs.get("noise_std", math.nan))
         meta = {k.removeprefix("meta_"): str(v) for k, v in attrs.items() if k.startswith("meta_")}
         return Measurements(acq, torch.from_numpy(arrays["data"]), None if math.isnan(noise) else noise, meta)

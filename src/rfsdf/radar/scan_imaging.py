@@ -15,10 +15,11 @@ operator's adjoint (spreading and the antenna pattern included), not a stationar
 approximation as the range-migration (omega-k) algorithm is; it costs O(P K Z L log L) for L
 lateral samples against O(P K Z L N) for back-projection over N positions.
 
-Measurements whose views are the positions of one board (each view a frame, as ``rfsdf
-import`` makes them) are such a scan when the positions fill a planar raster:
-:func:`planar_scan` finds it, and :func:`scan_matched_filter` images the whole scan as one
-coherent view on the raster's lattice.
+Measurements whose frames are the positions of one board (as ``rfsdf import`` makes them)
+are such a scan when the positions fill a planar raster: :func:`planar_scan` finds it, and
+:func:`scan_matched_filter` images the whole scan as one coherent view on the raster's
+lattice; :func:`scan_views_matched_filter` images each scan of ``Acquisition.scans`` (one a
+turntable angle, as preset ``sar-77g``) so, on a grid that lies on every scan's lattice.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ from ..limits import require_memory
 from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from .imaging import Image, safe_divide
 
-__all__ = ["PlanarScan", "planar_scan", "scan_image", "scan_column_norms", "scan_voxels", "scan_matched_filter"]
+__all__ = ["PlanarScan", "planar_scan", "scan_image", "scan_column_norms", "scan_voxels", "scan_matched_filter",
+           "scan_views_matched_filter", "lattice_grid"]
 
 _KERNEL_BYTES = 1 << 27  # kernels built at once, per chunk of frequencies
 
@@ -301,3 +303,47 @@ def scan_matched_filter(measurements: Measurements, grid: Grid, *, raster=None, 
         out_lower[axis], out_upper[axis], shape[axis] = values.min() - step / 2, values.max() + step / 2, len(values)
     out = Grid(tuple(out_lower), tuple(out_upper), tuple(shape))
     return Image(out, safe_divide(numerator, norms).to(torch.complex64)[None], norms.to(torch.float32)[None])
+
+
+def scan_views_matched_filter(measurements: Measurements, grid: Grid, *, device=None) -> Image:
+    """The matched filter of every scan of ``measurements`` (``Acquisition.scans``; none: its
+    frames are one scan) as one view each, by :func:`scan_matched_filter`, on ``grid``, whose
+    voxels must lie on every raster's lattice (voxel and step alike, centres on the lattice's
+    points; otherwise ValueError saying so). An :class:`~rfsdf.radar.imaging.Image`, a view a scan."""
+    acq = measurements.acquisition
+    if acq.scans is None:
+        views = [measurements]
+    else:
+        views = [Measurements(acq.coherent_view(v), measurements.data[acq.frames(v)]) for v in range(acq.num_views)]
+    images = []
+    for v, view in enumerate(views):
+        image = scan_matched_filter(view, grid, device=device)
+        if image.grid.shape != grid.shape or not np.allclose(image.grid.lower_m, grid.lower_m, atol=1e-6):
+            raster, _ = planar_scan(view.acquisition)
+            raise ValueError(f"scan {v}'s raster ({raster.steps_m[0] * 1e3:.3g} x {raster.steps_m[1] * 1e3:.3g} mm "
+                             f"steps) does not put its lattice on the grid's {np.round(np.asarray(grid.voxel_m) * 1e3, 3).tolist()} "
+                             "mm voxels; a voxel of the scan's step, aligned with its positions, does")
+        images.append(image)
+    return Image(grid, torch.cat([i.per_view for i in images]), torch.cat([i.column_norms_sq for i in images]))
+
+
+def lattice_grid(acquisition: Acquisition, lower_m, upper_m) -> Grid:
+    """The grid of the box [lower_m, upper_m] whose cubic voxels are the scans' step and whose
+    voxel centres lie on every scan's raster lattice: the grid :func:`scan_views_matched_filter`
+    images on, where the scans share one (rasters along scene axes, one step, as the views of
+    preset ``sar-77g``, a turntable's quarter turns apart). Along an axis no raster runs, the
+    first scan's origin anchors the voxels."""
+    views = [acquisition] if acquisition.scans is None else [acquisition.coherent_view(v)
+                                                             for v in range(acquisition.num_views)]
+    scans = [planar_scan(view)[0] for view in views]
+    step = min(min(scan.steps_m) for scan in scans)
+    anchor = np.array(scans[0].origin_m, float)
+    anchored = [False] * 3
+    for scan in scans:
+        for direction in (scan.axis_x, scan.axis_y):
+            axis = int(np.argmax(np.abs(direction)))
+            if not anchored[axis]:
+                anchor[axis], anchored[axis] = scan.origin_m[axis], True
+    lower = anchor + np.floor((np.asarray(lower_m, float) - anchor) / step - 1e-9) * step - step / 2
+    upper = anchor + np.ceil((np.asarray(upper_m, float) - anchor) / step + 1e-9) * step + step / 2
+    return Grid(tuple(lower), tuple(upper), tuple(int(n) for n in np.round((upper - lower) / step)))

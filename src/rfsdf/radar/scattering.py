@@ -31,7 +31,7 @@ import torch
 
 from ..geometry import sphere_trace
 
-__all__ = ["scatter", "lit_mask", "po_spectrum", "SPECULAR_EXPONENT", "DIFFUSE_WEIGHT"]
+__all__ = ["scatter", "lit_mask", "unblocked", "po_spectrum", "SPECULAR_EXPONENT", "DIFFUSE_WEIGHT"]
 
 SPECULAR_EXPONENT = 8.0  # n_s of the lobe
 DIFFUSE_WEIGHT = 0.5  # w_d of the lobe
@@ -50,20 +50,28 @@ def lit_mask(points: torch.Tensor, normals: torch.Tensor, tx_centre_m: torch.Ten
              occluder: Callable[[torch.Tensor], torch.Tensor] | None = None,
              shadow_offset_m: float = _SHADOW_OFFSET_M) -> torch.Tensor:
     """(Q,) bool: the sample faces both phase centres and, with an ``occluder`` SDF, its ray
-    to their midpoint is not blocked. Rays start ``shadow_offset_m`` off the surface."""
+    to their midpoint is not blocked (:func:`unblocked`)."""
     with torch.no_grad():
         to_tx, to_rx = _directions(points, tx_centre_m, rx_centre_m)
         lit = ((to_tx * normals).sum(1) > 0) & ((to_rx * normals).sum(1) > 0)
         if occluder is None or not lit.any():
             return lit
         idx = lit.nonzero().squeeze(1)
-        centre = 0.5 * (tx_centre_m + rx_centre_m).to(points)
-        origins = points[idx] + shadow_offset_m * normals[idx]
-        direction = centre - origins
+        lit[idx] = unblocked(points[idx], normals[idx], 0.5 * (tx_centre_m + rx_centre_m), occluder,
+                             shadow_offset_m=shadow_offset_m)
+        return lit
+
+
+def unblocked(points: torch.Tensor, normals: torch.Tensor, centre_m: torch.Tensor,
+              occluder: Callable[[torch.Tensor], torch.Tensor], *, shadow_offset_m: float = _SHADOW_OFFSET_M) -> torch.Tensor:
+    """(Q,) bool: the ray from each sample (started ``shadow_offset_m`` off the surface along
+    its normal) to ``centre_m`` (3,) [m] meets no surface of the ``occluder`` SDF first."""
+    with torch.no_grad():
+        origins = points + shadow_offset_m * normals
+        direction = centre_m.to(points) - origins
         distance = direction.norm(dim=1)
         trace = sphere_trace(occluder, origins, direction, eps=_TRACE_EPS_M, max_steps=256, t_max=distance)
-        lit[idx] = ~(trace.hit & (trace.t < distance))
-        return lit
+        return ~(trace.hit & (trace.t < distance))
 
 
 def po_spectrum(frequencies_hz: torch.Tensor) -> torch.Tensor:

@@ -18,7 +18,7 @@ from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
 from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from .operator import SensingOperator
-from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, po_spectrum, scatter
+from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, po_spectrum, scatter, unblocked
 from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
@@ -41,6 +41,7 @@ same physics predicts them in their units."""
 # does not depend on the sampling comes from stated roughness (rfsdf.roughness).
 # ``surface="points"`` keeps the points (``stratified=False`` the earlier random ones).
 SAMPLES_PER_WAVELENGTH = 3
+_REFLECTIVITY_BYTES = 1 << 27  # a scan's frames' reflectivities (F, Q) at once
 
 def surface_reflectivity(
     scene: Scene, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor, object_index: torch.Tensor,
@@ -63,16 +64,21 @@ def surface_reflectivity(
 
 
 def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acquisition, *,
-                        progress: bool = False, **scattering) -> torch.Tensor:
-    """(V, Q) complex64: :func:`surface_reflectivity` of the samples in each view, at the
-    centre frequency, from that view's Tx and Rx phase centres; ``scattering`` as there."""
-    acq = acquisition
-    return torch.stack([
+                        unshadowed: torch.Tensor | None = None, progress: bool = False, **scattering) -> torch.Tensor:
+    """(V, Q) complex64: :func:`surface_reflectivity` of the samples in each frame, at the
+    centre frequency, from that frame's Tx and Rx phase centres; ``scattering`` as there.
+    ``unshadowed`` (Q,) bool: shadows found once for all these frames (a scan's, from its
+    centre), so that no frame traces its own."""
+    acq, device = acquisition, samples.points.device
+    if unshadowed is not None:
+        scattering = {**scattering, "shadows": False}
+    tx, rx = acq.tx_m.mean(1).to(device), acq.rx_m.mean(1).to(device)
+    c = torch.stack([
         surface_reflectivity(scene, samples.points, samples.normals, samples.area_m2, samples.object_index,
-                             acq.tx_m[v].mean(0).to(samples.points.device), acq.rx_m[v].mean(0).to(samples.points.device),
-                             acq.center_frequency_hz, **scattering)
+                             tx[v], rx[v], acq.center_frequency_hz, **scattering)
         for v in progress_bar(range(acq.shape[0]), desc="scattering", enabled=progress)
     ])
+    return c if unshadowed is None else c * unshadowed.to(device)
 
 
 def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tuple[torch.Tensor, float]:
@@ -120,14 +126,36 @@ def simulate(
                                     seed=seed, stratified=stratified, surface=surface)
     _require_resolved_roughness(scene, plan.facet_edge_m if plan.facets else plan.spacing_m)
     samples = samples.to(device or "cpu")
-    c = view_reflectivities(scene, samples, acq, progress=progress, specular_exponent=specular_exponent,
-                            diffuse_weight=diffuse_weight, polarization=polarization, shadows=shadows)
-    operator = SensingOperator(acq)
-    if samples.corners_m is None:
-        y = operator.forward(scene.rough_points(samples), c, progress=progress).cpu()
+    scattering = {"specular_exponent": specular_exponent, "diffuse_weight": diffuse_weight,
+                  "polarization": polarization, "shadows": shadows}
+    points = scene.rough_points(samples)
+
+    def measure(part: Acquisition, unshadowed: torch.Tensor | None = None, show: bool = progress) -> torch.Tensor:
+        """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; a scan's summed over the
+        samples some frame of it sees (about half)."""
+        c = view_reflectivities(scene, samples, part, unshadowed=unshadowed, progress=show, **scattering)
+        seen = (c != 0).any(0) if unshadowed is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
+        operator, c = SensingOperator(part), c[:, seen]
+        if samples.corners_m is None:
+            return operator.forward(points[seen], c, progress=show).cpu()
+        weight = facet_weight(part, samples.points[seen], samples.corners_m[seen])
+        return operator.forward_weighted(points[seen], c, weight, progress=show).cpu()
+
+    if acq.scans is None:
+        y = measure(acq)
     else:
-        y = operator.forward_weighted(scene.rough_points(samples), c,
-                                      facet_weight(acq, samples.points, samples.corners_m), progress=progress).cpu()
+        # A scan's frames trace one set of shadows, from its centre: its frames see a
+        # hand-sized object within some 15 degrees of it (sar-77g), and a ray per sample and
+        # frame would cost thousands of traces a sample.
+        y = torch.zeros(acq.shape, dtype=torch.complex64)
+        chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
+        for view in progress_bar(range(acq.num_views), desc="scans", enabled=progress):
+            frames = acq.frames(view)
+            centre = 0.5 * (acq.tx_m[frames].mean((0, 1)) + acq.rx_m[frames].mean((0, 1)))
+            unshadowed = (unblocked(samples.points, samples.normals, centre.to(samples.points), scene.sdf)
+                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
+            for part in frames.split(chunk):
+                y[part] = measure(acq.view(part), unshadowed, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:
