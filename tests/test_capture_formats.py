@@ -415,6 +415,7 @@ def test_geraf_view_folders_read_back_what_was_written(tmp_path):
     assert [f.name for f in folders] == ["view_000", "view_001"]
     assert np.load(folders[0] / "tpos.npy").shape == (48, 3) and np.load(folders[0] / "adcr.npy").shape == (48, 16)
     back = read_geraf(tmp_path / "capture", CHIRP.frequencies_hz())
+    assert back.acquisition.scans.tolist() == [0] * 12 + [1] * 12  # a view folder is a view, as GeRaF's
     for name in ("tx_m", "rx_m", "boresight"):
         assert torch.allclose(getattr(back.acquisition, name), getattr(acquisition, name), rtol=0, atol=1e-12), name
     assert torch.allclose(back.data, data.to(back.data.dtype), rtol=1e-6, atol=0)  # complex64 data

@@ -99,8 +99,9 @@ def _frames(view: Path, arrays: dict[str, np.ndarray], samples: int):
 def read_geraf(folder, frequencies_hz: np.ndarray, *, boresight=(0.0, 0.0, 1.0),
                range_delay_m: float = GERAF_RANGE_DELAY_M, conjugate: bool = False) -> Measurements:
     """Measurements of a GeRaF capture ``folder`` (a view folder, or a folder of them) sampled at
-    ``frequencies_hz`` (K,), the radar facing ``boresight`` in the turntable's rest frame;
-    one error line naming the file for a missing array, a wrong shape, a NaN."""
+    ``frequencies_hz`` (K,), the radar facing ``boresight`` in the turntable's rest frame,
+    each view folder's frames one view (``Acquisition.scans``), as GeRaF images them; one
+    error line naming the file for a missing array, a wrong shape, a NaN."""
     folder = Path(folder)
     views = _view_folders(folder)
     if not views:
@@ -117,8 +118,9 @@ def read_geraf(folder, frequencies_hz: np.ndarray, *, boresight=(0.0, 0.0, 1.0),
         turn = _rotation(arrays["rotation"], str(view / "rotation.npy")).T
         parts.append((tx @ turn.T, rx @ turn.T, np.tile(turn @ bore, (len(tx), 1)), adc))
     tx, rx, bores, adc = (np.concatenate(p) for p in zip(*parts))
+    scans = np.repeat(np.arange(len(parts)), [len(part[0]) for part in parts])
     acquisition = Acquisition(torch.from_numpy(tx), torch.from_numpy(rx), torch.from_numpy(f),
-                              torch.from_numpy(bores), 0.0, True)
+                              torch.from_numpy(bores), 0.0, True, torch.from_numpy(scans))
     data = torch.from_numpy(np.conj(adc) if conjugate else adc).to(torch.complex128)
     data = data * delay_phase(acquisition.frequencies_hz, range_delay_m).conj()
     return Measurements(acquisition, data, None, {"source": str(folder), "format": "geraf"})
@@ -126,15 +128,19 @@ def read_geraf(folder, frequencies_hz: np.ndarray, *, boresight=(0.0, 0.0, 1.0),
 
 def write_geraf(folder, measurements: Measurements, rotations: np.ndarray, *,
                 range_delay_m: float = GERAF_RANGE_DELAY_M) -> list[Path]:
-    """Write ``measurements`` (views of one Tx each, in the object's frame) as GeRaF view folders
-    ``view_000``, ... under ``folder``: the views split evenly over the turntable rotations
-    ``rotations`` (A, 3, 3), the positions turned into the radar's frame (R p) and the fixed
-    delay added; the inverse of :func:`read_geraf`."""
+    """Write ``measurements`` (frames of one Tx each, in the object's frame) as GeRaF view folders
+    ``view_000``, ... under ``folder``: one a scan (``Acquisition.scans``, in order), or the
+    frames split evenly, over the turntable rotations ``rotations`` (A, 3, 3), the positions
+    turned into the radar's frame (R p) and the fixed delay added; the inverse of
+    :func:`read_geraf`."""
     acquisition = measurements.acquisition
     v, t, r, k = acquisition.shape
     rotations = np.asarray(rotations, float)
     if t != 1 or v % len(rotations):
-        raise ValueError(f"need views of one Tx, as many for each of the {len(rotations)} rotations; got {v} x {t} Tx")
+        raise ValueError(f"need frames of one Tx, as many for each of the {len(rotations)} rotations; got {v} x {t} Tx")
+    scans = acquisition.scans
+    if scans is not None and not torch.equal(scans, torch.arange(len(rotations)).repeat_interleave(v // len(rotations))):
+        raise ValueError(f"need the {len(rotations)} rotations' scans in order, as many frames each")
     delay = delay_phase(acquisition.frequencies_hz, range_delay_m)
     adc = (measurements.data.to(torch.complex128) * delay).numpy().reshape(len(rotations), -1, k)
     tx = np.repeat(acquisition.tx_m.numpy(), r, axis=1).reshape(len(rotations), -1, 3)
