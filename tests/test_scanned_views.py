@@ -3,7 +3,8 @@ position a frame of its own Tx and Rx, the frames of one pose imaged as one cohe
 (preset ``sar-77g``). The radar lays the frames out, the simulator measures them as it would
 frame by frame, the HDF5 file keeps which scan each frame belongs to, and the matched filter
 sums a scan's frames: exactly (the sum of their back-projections), by range profiles and by
-FFT on the raster's lattice alike; the preset resolves a point to the closed forms."""
+FFT on the raster's lattice alike; the preset resolves a point to the closed forms; and the
+fit's renderer takes a scan as one view."""
 
 import dataclasses
 
@@ -14,10 +15,13 @@ import torch
 from rfsdf.errors import RfsdfError
 from rfsdf.geometry import Grid
 from rfsdf.radar import load_radar, matched_filter, read_measurements, write_measurements
-from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
+from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Measurements
+from rfsdf.radar.clean import clean_image
+from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.operator import SensingOperator
 from rfsdf.radar.scan_imaging import lattice_grid, planar_scan, scan_image, scan_views_matched_filter
 from rfsdf.radar.simulate import simulate
+from rfsdf.recon.render import CoherentRenderer
 from rfsdf.scene import load_scene
 
 _SMALL_SAR = """
@@ -39,6 +43,16 @@ distance_m = 0.2
 azimuths_per_ring = [2]
 elevations_rad = [0.0]
 """
+
+
+class _Ball(torch.nn.Module):
+    """The sphere scene's 2 cm ball as a field: f = |p| - r, a free reflectivity 1."""
+
+    def sdf(self, points):
+        return points.norm(dim=1) - 0.02
+
+    def reflectivity(self, points):
+        return torch.ones(len(points))
 
 
 @pytest.fixture()
@@ -153,3 +167,58 @@ def test_the_sar_preset_resolves_a_point_to_the_closed_forms():
     along = (op.adjoint(op.forward(torch.zeros(1, 3, dtype=torch.float64), torch.ones(1, dtype=torch.complex128)),
                         along_axis) / op.column_norms_sq(along_axis).sqrt()).numpy()
     assert _half_power_width(along, 0.001) == pytest.approx(0.886 * SPEED_OF_LIGHT / (2 * acq.bandwidth_hz), rel=0.05)
+
+
+def test_the_fit_renders_a_scan_as_one_view_that_matches_its_data(small_sar):
+    """The renderer's view is the scan: its frames' predicted data summed coherently into one
+    image (the samples' lobes seen from the scan's centre), which for the true ball matches
+    the data's image of the whole scan; thinned, 1/n^2 of each scan's frames, alike."""
+    data = simulate(load_scene("sphere"), dataclasses.replace(small_sar, snr_db=None))
+    grid = Grid((-0.04,) * 3, (0.04,) * 3, (24,) * 3)
+    ball = _Ball()
+    for step, frames in ((1, 12), (2, 3)):
+        renderer = CoherentRenderer(data, grid, element_step=step)
+        assert renderer.num_views == 2 and [len(f) for f in renderer.frames] == [frames, frames]
+        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+        predicted = renderer(ball, torch.arange(2), torch.arange(len(renderer.voxels)))
+        observed = renderer.observed
+        correlation = (predicted.conj() * observed).sum(1).abs() / (predicted.norm(dim=1) * observed.norm(dim=1))
+        assert correlation.min() > 0.999
+
+
+def test_clean_and_the_observed_surface_take_a_scan_as_one_view(small_sar):
+    data = simulate(load_scene("sphere"), dataclasses.replace(small_sar, snr_db=None))
+    grid = Grid((-0.04,) * 3, (0.04,) * 3, (16,) * 3)
+    clean = clean_image(data, grid, method="exact", max_components=5)
+    assert clean.per_view_power.shape == (2, *grid.shape) and all(len(i) == 5 for i in clean.component_index)
+    # each scan's CLEAN starts at the peak of that scan's coherent image, and leaves less
+    dirty = matched_filter(data, grid, method="exact").per_view.abs()
+    for view, index in enumerate(clean.component_index):
+        assert int(index[0]) == int(dirty[view].argmax())
+        assert float(clean.residual[view].abs().max()) < float(dirty[view].max())
+    centres = data.acquisition.view_centres()[0]
+    # the ball's points facing either scan are observed, those facing neither are not
+    directions = torch.nn.functional.normalize(torch.randn(500, 3, dtype=torch.float64), dim=1)
+    seen = observed_mask(0.02 * directions, directions, data.acquisition, load_scene("sphere").sdf)
+    facing = torch.stack([directions @ torch.nn.functional.normalize(c, dim=0) for c in centres]).max(0).values
+    assert bool(seen[facing > 0.99].all()) and not bool(seen[facing < 0].any())
+
+
+def test_the_renderer_keeps_every_nth_frequency_where_the_range_stays_unambiguous(small_sar):
+    """Every 2nd of 8 frequencies 47 MHz apart: the same band, 3.2 m -> 1.6 m of unambiguous
+    path, still longer than the grid's; the prediction at the truth still matches the data.
+    On the default radar (16 frequencies 250 MHz apart) every 2nd would fold the scene's
+    paths (0.6 m unambiguous against about 1 m of paths): refused, saying why."""
+    data = simulate(load_scene("sphere"), dataclasses.replace(small_sar, snr_db=None))
+    grid = Grid((-0.04,) * 3, (0.04,) * 3, (24,) * 3)
+    renderer = CoherentRenderer(data, grid, frequency_step=2)
+    assert renderer.po_spectrum.shape == (4,)
+    ball = _Ball()
+    renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    predicted = renderer(ball, torch.arange(2), torch.arange(len(renderer.voxels)))
+    correlation = (predicted.conj() * renderer.observed).sum(1).abs() / (predicted.norm(dim=1) * renderer.observed.norm(dim=1))
+    assert correlation.min() > 0.999
+    near = load_radar("near-77g")
+    measurements = Measurements(near.acquisition(), torch.zeros(near.acquisition().shape, dtype=torch.complex64))
+    with pytest.raises(ValueError, match="frequency_step 2: the unambiguous path length 0.6 m is shorter than"):
+        CoherentRenderer(measurements, Grid((-0.15,) * 3, (0.15,) * 3, (8,) * 3), frequency_step=2)

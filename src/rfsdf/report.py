@@ -184,15 +184,16 @@ def _resolution_text(acquisition, centre_m: np.ndarray) -> str:
     R its distance to ``centre_m`` (3,) [m], D the largest extent of its virtual array."""
     f = acquisition.frequencies_hz.numpy()
     bandwidth = len(f) * np.ptp(f) / max(len(f) - 1, 1)
-    tx, rx = acquisition.tx_m[0].numpy(), acquisition.rx_m[0].numpy()
-    virtual = 0.5 * (tx[:, None] + rx[None]).reshape(-1, 3)
+    frames = acquisition.frames(0)  # one frame, or a scan's
+    tx, rx = acquisition.tx_m[frames].numpy(), acquisition.rx_m[frames].numpy()
+    virtual = 0.5 * (tx[:, :, None] + rx[:, None]).reshape(-1, 3)
     aperture = float(np.ptp(virtual, axis=0).max())
     distance = float(np.linalg.norm(virtual.mean(0) - centre_m))
     wavelength = SPEED_OF_LIGHT / float(f.mean())
     return (f"range resolution c/2B = {range_resolution_m(bandwidth) * 1e3:.1f} mm; cross-range resolution "
             f"lambda R / 2D = {wavelength * distance / (2 * aperture) * 1e3:.1f} mm at R = {distance:.2f} m "
             f"(aperture D = {aperture * 100:.1f} cm, lambda = {wavelength * 1e3:.2f} mm); "
-            f"{acquisition.shape[0]} views")
+            f"{acquisition.num_views} views")
 
 
 def _scene_and_radar(folder: Path, settings: dict):
@@ -244,7 +245,7 @@ def _demo_sections(folder: Path, settings: dict, result: dict) -> tuple[str, lis
                      f"(Chamfer {baselines[best]['full']['chamfer_l1_mm']:.2f} mm)", truth=truth),
         observed_figure(truth, observed, "true surface: observed by some view near specular (orange) or by none"),
         views_figure(truth, acquisition.tx_m.numpy(), acquisition.rx_m.numpy(),
-                     f"true surface and the radar's {acquisition.shape[0]} views (Tx red, Rx blue)"),
+                     f"true surface and the radar's {acquisition.num_views} views (Tx red, Rx blue)"),
     ]
     if materials is not None:
         classes = partial(_face_classes, field, frequency_hz=acquisition.center_frequency_hz)
@@ -284,7 +285,7 @@ def _models_sections(folder: Path, settings: dict, result: dict) -> tuple[str, l
             views.append(error_figure(_load_mesh(mesh_path), scene.sdf, f"{name} model, coloured by its signed "
                                       f"distance to the truth (Chamfer {row['chamfer_l1_mm']:.1f} mm)", truth=truth))
     views.append(views_figure(truth, acquisition.tx_m.numpy(), acquisition.rx_m.numpy(),
-                              f"true surface and the radar's {acquisition.shape[0]} views (Tx red, Rx blue)"))
+                              f"true surface and the radar's {acquisition.num_views} views (Tx red, Rx blue)"))
     sections.append(Section("views3d", "3-D views (drag to turn, scroll to zoom)", "".join(figures_html(views))))
     return f"rfsdf models: scene {scene.name!r}, radar {radar.name!r}", sections
 

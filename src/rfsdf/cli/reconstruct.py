@@ -132,9 +132,9 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
                                      source=f"{scene_name}: calibration.reference {config.calibration.reference}")
     if image_path is not None:
         image = read_image(image_path)
-        if image.per_view.shape[0] != measurements.acquisition.shape[0]:
+        if image.per_view.shape[0] != measurements.acquisition.num_views:
             raise ValueError(f"{image_path}: per_view: the image has {image.per_view.shape[0]} views, "
-                             f"{data} has {measurements.acquisition.shape[0]}")
+                             f"{data} has {measurements.acquisition.num_views}")
         grid = image.grid
     else:
         lower, upper = image_box(data, measurements, bounds, None)

@@ -86,6 +86,18 @@ class Acquisition:
         sub = self.view(self.frames(view))
         return replace(sub, scans=None)
 
+    def view_elements(self, view: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Every Tx (F T, 3) and Rx (F R, 3) [m] of view ``view``'s frames."""
+        frames = self.frames(view)
+        return self.tx_m[frames].reshape(-1, 3), self.rx_m[frames].reshape(-1, 3)
+
+    def view_centres(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The Tx and Rx phase centres (num_views, 3) [m] of each view: its elements' mean."""
+        if self.scans is None:
+            return self.tx_m.mean(1), self.rx_m.mean(1)
+        tx, rx = zip(*(self.view_elements(v) for v in range(self.num_views)))
+        return torch.stack([t.mean(0) for t in tx]), torch.stack([r.mean(0) for r in rx])
+
     @property
     def num_measurements(self) -> int:
         v, t, r, k = self.shape
@@ -120,7 +132,8 @@ class Acquisition:
                            self.pattern_exponent, self.spreading, scans)
 
     def thinned(self, step: int) -> Acquisition:
-        """A sparse sub-array: 1/``step`` of the Tx and of the Rx, step^2 fewer pairs.
+        """A sparse sub-array: 1/``step`` of the Tx and of the Rx, step^2 fewer pairs; of a
+        scanned acquisition (``scans``), 1/step^2 of each scan's frames instead.
 
         The elements kept are a fixed pseudo-random choice (the same for every call), not
         every step-th one: a regular thinning multiplies the element spacing and puts
@@ -128,8 +141,24 @@ class Acquisition:
         """
         if step < 1:
             raise ValueError(f"element step must be >= 1, got {step}")
+        if self.scans is not None:
+            return self.view(self.thinned_frames(step))
         return Acquisition(self.tx_m[:, _kept(self.tx_m.shape[1], step)], self.rx_m[:, _kept(self.rx_m.shape[1], step)],
                            self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading, self.scans)
+
+
+    def every_frequency(self, step: int) -> Acquisition:
+        """Every ``step``-th frequency (from the first): the same band, step x shorter
+        unambiguous range c / (2 step df)."""
+        if step < 1:
+            raise ValueError(f"frequency step must be >= 1, got {step}")
+        return replace(self, frequencies_hz=self.frequencies_hz[::step])
+
+    def thinned_frames(self, step: int) -> torch.Tensor:
+        """(F,) sorted indices of the frames :meth:`thinned` keeps of a scanned acquisition:
+        a fixed pseudo-random 1/step^2 of each scan's frames."""
+        kept = [frames[_kept(len(frames), step * step)] for frames in map(self.frames, range(self.num_views))]
+        return torch.cat(kept).sort().values
 
 
 @dataclass(frozen=True)
@@ -154,9 +183,21 @@ class Measurements:
 
     def thinned(self, step: int) -> Measurements:
         """The samples of :meth:`Acquisition.thinned` (the same sparse sub-array)."""
+        if self.acquisition.scans is not None:
+            frames = self.acquisition.thinned_frames(step)
+            return Measurements(self.acquisition.view(frames), self.data[frames], self.noise_std, self.metadata)
         _, t, r, _ = self.acquisition.shape
         data = self.data[:, _kept(t, step)][:, :, _kept(r, step)]
         return Measurements(self.acquisition.thinned(step), data, self.noise_std, self.metadata)
+
+    def every_frequency(self, step: int) -> Measurements:
+        """The samples of :meth:`Acquisition.every_frequency`."""
+        return Measurements(self.acquisition.every_frequency(step), self.data[..., ::step], self.noise_std, self.metadata)
+
+    def coherent_view(self, view: int) -> Measurements:
+        """The frames of view ``view`` alone (:meth:`Acquisition.coherent_view`) and their samples."""
+        acq = self.acquisition
+        return Measurements(acq.coherent_view(view), self.data[acq.frames(view)], self.noise_std, self.metadata)
 
 
 def _kept(count: int, step: int) -> torch.Tensor:

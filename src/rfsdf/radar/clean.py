@@ -96,10 +96,11 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     """
     if not 0 < gain <= 1:
         raise ValueError(f"CLEAN loop gain must be in (0, 1], got {gain}")
-    acquisition = measurements.acquisition.view(view)
+    measured = measurements.coherent_view(view)
+    acquisition = measured.acquisition
     op = SensingOperator(acquisition)
     fast = imaging_method(acquisition, method, device) == "fast"
-    y = measurements.data[view:view + 1].to(device)
+    y = measured.data.to(device)
     voxels = grid.points(device=device)
     norms = op.column_norms_sq(voxels)
     seen = norms > 0
@@ -110,7 +111,7 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
 
     def image(data):
         if fast:
-            return normalised(fast_adjoint(acquisition, data.cpu(), voxels.cpu())[0].to(voxels.device))
+            return normalised(fast_adjoint(acquisition, data.cpu(), voxels.cpu(), summed=True)[0].to(voxels.device))
         return normalised(op.adjoint(data, voxels))
 
     residual = image(y)
@@ -138,7 +139,7 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
 
 def clean_image(measurements: Measurements, grid: Grid, *, progress: bool = False, **options) -> CleanResult:
     """CLEAN every view (options as :func:`clean_view`) and restore the incoherent power image."""
-    views = measurements.acquisition.shape[0]
+    views = measurements.acquisition.num_views
     indices, amplitudes, residuals, restored = [], [], [], []
     for v in progress_bar(range(views), desc="CLEAN", enabled=progress):
         index, amplitude, residual = clean_view(measurements, v, grid, **options)

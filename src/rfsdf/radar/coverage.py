@@ -38,9 +38,10 @@ def observed_mask(points: torch.Tensor, normals: torch.Tensor, acquisition: Acqu
     """
     p, n = points.double(), normals.double()
     observed = torch.zeros(len(p), dtype=torch.bool)
-    for v in range(acquisition.shape[0]):
-        tx_centre, rx_centre = acquisition.tx_m[v].mean(0), acquisition.rx_m[v].mean(0)
-        centre, elements = 0.5 * (tx_centre + rx_centre), torch.cat([acquisition.tx_m[v], acquisition.rx_m[v]])
+    for v in range(acquisition.num_views):
+        tx, rx = acquisition.view_elements(v)  # a frame's, or all of a scan's
+        tx_centre, rx_centre = tx.mean(0), rx.mean(0)
+        centre, elements = 0.5 * (tx_centre + rx_centre), torch.cat([tx, rx])
         towards = centre - p  # (N, 3)
         distance = towards.norm(dim=1)  # (N,)
         tilt = torch.arccos((towards * n).sum(1).div(distance).clamp(-1, 1))

@@ -311,10 +311,7 @@ def scan_views_matched_filter(measurements: Measurements, grid: Grid, *, device=
     voxels must lie on every raster's lattice (voxel and step alike, centres on the lattice's
     points; otherwise ValueError saying so). An :class:`~rfsdf.radar.imaging.Image`, a view a scan."""
     acq = measurements.acquisition
-    if acq.scans is None:
-        views = [measurements]
-    else:
-        views = [Measurements(acq.coherent_view(v), measurements.data[acq.frames(v)]) for v in range(acq.num_views)]
+    views = [measurements.coherent_view(v) for v in range(acq.num_views)] if acq.scans is not None else [measurements]
     images = []
     for v, view in enumerate(views):
         image = scan_matched_filter(view, grid, device=device)

@@ -103,6 +103,10 @@ class InitConfig(StrictModel):
 class RenderConfig(StrictModel):
     renderer: str = "coherent"
     element_step: PositiveInt = 2  # image data and prediction with every n-th Tx and Rx (n^2 fewer pairs)
+    # image data and prediction with every n-th frequency: n x fewer, the same band and range
+    # resolution, an n x shorter unambiguous range (refused where that is shorter than the
+    # grid's paths); for data with many frequencies, as a scan's
+    frequency_step: PositiveInt = 1
     # facets: flat triangles of f = 0 with their phase integrated (the converged quadrature, as
     # the simulator's); points: random points near it (a Monte Carlo quadrature, for comparison)
     surface: Literal["facets", "points"] = "facets"

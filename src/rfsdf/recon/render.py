@@ -63,7 +63,10 @@ class CoherentRenderer:
 
     measurements : the data. grid : the image grid (data voxels are its voxel centres).
     element_step : image with every n-th Tx and Rx only (both the data and the prediction,
-    so they stay comparable): the same aperture and resolution, n^2 times fewer pairs.
+    so they stay comparable): the same aperture and resolution, n^2 times fewer pairs (of a
+    scan, 1/n^2 of its frames). frequency_step : every n-th frequency, alike (ValueError
+    when the unambiguous range c / (2 n df) is shorter than the grid's range extent). A view is a frame, or all frames of a scan
+    (``Acquisition.scans``), whose samples scatter as seen from the scan's phase centres.
     surface : "facets", flat triangles of f = 0 whose phase is integrated across them
     (``recon/surface_mesh.py``: the converged quadrature, as the simulator's), or "points",
     random points near it (``recon/surface.py``: a Monte Carlo quadrature, kept for comparison).
@@ -75,7 +78,7 @@ class CoherentRenderer:
     images (``recon/losses.py``, "split"); 1: the full band only.
     """
 
-    def __init__(self, measurements: Measurements, grid: Grid, *, element_step: int = 1,
+    def __init__(self, measurements: Measurements, grid: Grid, *, element_step: int = 1, frequency_step: int = 1,
                  surface: str = "facets", spacing_m: float | None = None,
                  specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT,
                  shadows: bool = True, device="cpu", dtype: torch.dtype = torch.float32, smoothing_m: float = 0.0,
@@ -84,17 +87,22 @@ class CoherentRenderer:
             raise ValueError(f"unknown surface {surface!r}; known: {', '.join(SURFACES)}")
         self.surface = surface
         self.grid, self.device = grid, torch.device(device)
-        data = measurements.thinned(element_step)
+        data = measurements.thinned(element_step).every_frequency(frequency_step)
+        if frequency_step > 1:
+            _require_unambiguous(data.acquisition, grid, frequency_step)
         acq = data.acquisition
         self.voxel_m = float(np.max(grid.voxel_m))
         self.spacing_m = spacing_m or acq.wavelength_m / 3
         self.lobe = {"specular_exponent": specular_exponent, "diffuse_weight": diffuse_weight}
         self.shadows = shadows
         self.smoothing_m = smoothing_m
-        self.operators = [SensingOperator(acq.view(v)) for v in range(acq.shape[0])]
-        self.tx_centres = acq.tx_m.mean(1).to(self.device, dtype)  # (V, 3)
-        self.rx_centres = acq.rx_m.mean(1).to(self.device, dtype)
-        require_image_memory(acq.shape[0], grid, "the fit's images")
+        # a view: a frame, or a scan's frames together (Acquisition.scans)
+        self.operators = [SensingOperator(acq.coherent_view(v)) for v in range(acq.num_views)]
+        self.frames = [acq.frames(v) for v in range(acq.num_views)]
+        tx_centres, rx_centres = acq.view_centres()
+        self.tx_centres = tx_centres.to(self.device, dtype)  # (V, 3)
+        self.rx_centres = rx_centres.to(self.device, dtype)
+        require_image_memory(acq.num_views, grid, "the fit's images")
         self.voxels = grid.points(device=self.device, dtype=dtype)  # (N, 3)
         self.column_norms_sq = torch.stack([op.column_norms_sq(self.voxels) for op in self.operators])  # (V, N)
         k = acq.shape[3]
@@ -110,11 +118,11 @@ class CoherentRenderer:
         views = progress_bar(range(len(self.operators)), desc="observed images", enabled=progress)
         if bands > 1:
             # one adjoint per band: the full band's image is their sum
-            band_observed = torch.stack([self._band_images(v, data.data[v:v + 1].to(self.device), self.voxels)
+            band_observed = torch.stack([self._band_images(v, data.data[self.frames[v]].to(self.device), self.voxels)
                                          for v in views])  # (V, B, N)
             observed = self.full_band(band_observed)
         else:
-            observed = torch.stack([self._normalise(v, self.operators[v].adjoint(data.data[v:v + 1].to(self.device),
+            observed = torch.stack([self._normalise(v, self.operators[v].adjoint(data.data[self.frames[v]].to(self.device),
                                                                                  self.voxels)) for v in views])
         self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
         self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
@@ -139,7 +147,7 @@ class CoherentRenderer:
         return torch.where(seen, back_projection / torch.where(seen, norms, 1.0), 0.0)
 
     def _band_images(self, view: int, y: torch.Tensor, targets: torch.Tensor, voxel_index=slice(None)) -> torch.Tensor:
-        """(B, X) the normalised MF image of data ``y`` (1, T, R, K) from each sub-band's
+        """(B, X) the normalised MF image of data ``y`` (F, T, R, K) from each sub-band's
         frequencies alone at ``targets`` (X, 3): A_b^H y_b / ||A_b,q||^2, where ||A_b,q||^2 is
         the band's share K_b / K of the column norm (every phasor has modulus 1)."""
         return torch.stack([
@@ -192,7 +200,7 @@ class CoherentRenderer:
 
     def predict_data(self, view: int, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor,
                      reflection, corners_m: torch.Tensor | None = None) -> torch.Tensor:
-        """y_v = A_v c_v (1, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
+        """y_v = A_v c_v (F, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
         c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there), and for
         facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
         the phase integral across each at each frequency. The simulator's data, for the
@@ -201,7 +209,9 @@ class CoherentRenderer:
         c = scatter(points, normals, area_m2, reflection, tx, rx, self.wavenumber_rad_m, **self.lobe)
         if corners_m is not None:
             c = c[None] * facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)  # (K, Q)
-        return self.operators[view].forward(points, c[None]) * self.po_spectrum.to(c.dtype)
+        operator = self.operators[view]
+        c = c[None].expand(operator.acq.shape[0], *c.shape)  # the same c in each of the view's frames
+        return operator.forward(points, c) * self.po_spectrum.to(c.dtype)
 
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
         """(K,) complex128 relative permittivities of catalogue materials at the data's centre
@@ -274,3 +284,19 @@ class CoherentRenderer:
             images.append(self._band_images(v, y, targets, voxel_index) if bands
                           else self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)
+
+
+def _require_unambiguous(acquisition, grid: Grid, frequency_step: int) -> None:
+    """ValueError when the frequencies' unambiguous path length c / df is shorter than the
+    spread of the round-trip paths from some view's phase centre to the grid's corners."""
+    f = acquisition.frequencies_hz
+    if len(f) < 2:
+        return
+    unambiguous = SPEED_OF_LIGHT / float(torch.diff(torch.sort(f).values).max())  # path length [m]
+    corners = torch.tensor(np.array(np.meshgrid(*zip(grid.lower_m, grid.upper_m), indexing="ij")).reshape(3, -1).T)
+    tx, rx = acquisition.view_centres()
+    paths = (corners[None] - tx[:, None]).norm(dim=2) + (corners[None] - rx[:, None]).norm(dim=2)  # (V, 8)
+    spread = float((paths.max(1).values - paths.min(1).values).max())
+    if unambiguous < spread:
+        raise ValueError(f"frequency_step {frequency_step}: the unambiguous path length {unambiguous:.3g} m is shorter "
+                         f"than the grid's {spread:.3g} m of round-trip paths; a smaller frequency_step")

@@ -156,7 +156,8 @@ class Trainer:
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, [delayed, decay, decay])
         self.generator = torch.Generator().manual_seed(tc.seed)
         self.renderer = RENDERERS.get(rc.renderer)(
-            problem.measurements, problem.grid, element_step=rc.element_step, surface=rc.surface,
+            problem.measurements, problem.grid, element_step=rc.element_step, frequency_step=rc.frequency_step,
+            surface=rc.surface,
             spacing_m=rc.spacing_m,
             shadows=rc.shadows, device=self.device, smoothing_m=rc.surface_smoothing_m,
             bands=max(bands_of(DATA_LOSSES.get(name)) for name in config.loss.names()), progress=progress)
@@ -230,8 +231,7 @@ class Trainer:
         exclude = excluded_voxels(ic, per_view, acquisition, grid, threshold, matched_filter_power=matched)
         normals = None
         if ic.normal_weight > 0:
-            normals = specular_normals(per_view, acquisition.tx_m.mean(1).cpu().numpy(),
-                                       acquisition.rx_m.mean(1).cpu().numpy(), grid)
+            normals = specular_normals(per_view, *(c.cpu().numpy() for c in acquisition.view_centres()), grid)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,

@@ -60,7 +60,7 @@ def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, t
     ``acquisition`` at the global ``threshold``. With ``matched_filter_power`` (V, nx, ny, nz),
     the per-view matched-filter power beside a CLEAN image's, what is a sidelobe in either
     image is blanked (``sidelobes_in_mf``)."""
-    centres = acquisition.tx_m.mean(1).cpu().numpy()
+    centres = acquisition.view_centres()[0].cpu().numpy()
     rule = {"threshold": threshold, "local_threshold": init.local_threshold, "window_m": init.window_m}
     exclude = np.zeros(grid.shape, bool)
     if init.carve_front:
