@@ -279,6 +279,11 @@ def test_rfsdf_import_reads_a_dca1000_capture(tmp_path):
     assert "12 views of 1 Tx x 4 Rx, 16 samples over 77.421-77.526 GHz" in result.output
     imported = read_measurements(tmp_path / "data.h5")
     assert torch.equal(imported.data, expected.data) and torch.equal(imported.acquisition.rx_m, expected.acquisition.rx_m)
+    assert imported.acquisition.scans is None  # each frame a view
+    result = CliRunner().invoke(main, args[:-1] + [str(tmp_path / "scan.h5"), "--one-view"])
+    assert result.exit_code == 0 and "1 view(s) of 12 frames of 1 Tx x 4 Rx" in result.output, result.output
+    scan = read_measurements(tmp_path / "scan.h5")
+    assert scan.acquisition.num_views == 1 and torch.equal(scan.data, expected.data)
 
 
 @pytest.mark.parametrize("change, message", [

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -111,14 +112,18 @@ def _frequencies(configs: tuple[Path, ...]):
                    "TI; geraf 0.15; utd-mat 0.15, or 0 with a delayOffset.mat).")
 @click.option("--conjugate/--no-conjugate", default=None,
               help="Conjugate the IF (default: the chip's sign for dca1000 and utd-mat, none for hdf5 and geraf).")
+@click.option("--one-view", is_flag=True,
+              help="The capture's frames are one view (a scan at one turntable angle), imaged and fitted coherently "
+                   "(default: each frame a view; GeRaF: each view folder one view).")
 @one_line_errors
 def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, ...], chip: str | None,
                poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
-               conjugate: bool | None):
+               conjugate: bool | None, one_view: bool):
     """Convert a real capture into a measurements file: rfsdf's HDF5 layout; a TI DCA1000
     .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file;
     GeRaF's view folders with the chirp's config; or a UT Dallas MIMO-SAR folder of .mat
-    files (each frame a view; layouts in docs/reference/formats.md)."""
+    files (each frame a view unless --one-view, each GeRaF folder one; layouts in
+    docs/reference/formats.md)."""
     from ..radar import import_fmcw, write_measurements
 
     refuse_overwriting_inputs(out, capture, *configs, poses)
@@ -150,10 +155,18 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
         geometry = CaptureGeometry(board(chip or device), _vector(boresight, "--boresight"),
                                    _vector(rx_axis, "--rx-axis"), range_delay_m, conjugate)
         measurements = import_ti_capture(bins, chirp, geometry, poses, lanes=lanes)
+    if one_view:
+        import torch
+
+        frames = measurements.acquisition.shape[0]
+        measurements = dataclasses.replace(measurements, acquisition=dataclasses.replace(
+            measurements.acquisition, scans=torch.zeros(frames, dtype=torch.int64)))
     write_measurements(out, measurements)
-    v, t, r, k = measurements.acquisition.shape
-    f = measurements.acquisition.frequencies_hz
-    click.echo(f"{v} views of {t} Tx x {r} Rx, {k} samples over {float(f[0]) / 1e9:.3f}-{float(f[-1]) / 1e9:.3f} GHz")
+    acq = measurements.acquisition
+    v, t, r, k = acq.shape
+    f = acq.frequencies_hz
+    views = f"{v} views" if acq.scans is None else f"{acq.num_views} view(s) of {v} frames"
+    click.echo(f"{views} of {t} Tx x {r} Rx, {k} samples over {float(f[0]) / 1e9:.3f}-{float(f[-1]) / 1e9:.3f} GHz")
     click.echo(f"wrote {out}")
 
 
