@@ -144,8 +144,7 @@ class Acquisition:
         if self.scans is not None:
             return self.view(self.thinned_frames(step))
         return Acquisition(self.tx_m[:, _kept(self.tx_m.shape[1], step)], self.rx_m[:, _kept(self.rx_m.shape[1], step)],
-                           self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading, self.scans)
-
+                           self.frequencies_hz, self.boresight, self.pattern_exponent, self.spreading)
 
     def every_frequency(self, step: int) -> Acquisition:
         """Every ``step``-th frequency (from the first): the same band, step x shorter
