@@ -149,12 +149,11 @@ def simulate(
         # frame would cost thousands of traces a sample.
         y = torch.zeros(acq.shape, dtype=torch.complex64)
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
+        centres = 0.5 * sum(acq.view_centres())  # (S, 3) each scan's phase centre
         for view in progress_bar(range(acq.num_views), desc="scans", enabled=progress):
-            frames = acq.frames(view)
-            centre = 0.5 * (acq.tx_m[frames].mean((0, 1)) + acq.rx_m[frames].mean((0, 1)))
-            unshadowed = (unblocked(samples.points, samples.normals, centre.to(samples.points), scene.sdf)
+            unshadowed = (unblocked(samples.points, samples.normals, centres[view].to(samples.points), scene.sdf)
                           if shadows else torch.ones(len(samples.points), dtype=torch.bool))
-            for part in frames.split(chunk):
+            for part in acq.frames(view).split(chunk):
                 y[part] = measure(acq.view(part), unshadowed, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None

@@ -65,8 +65,9 @@ class CoherentRenderer:
     element_step : image with every n-th Tx and Rx only (both the data and the prediction,
     so they stay comparable): the same aperture and resolution, n^2 times fewer pairs (of a
     scan, 1/n^2 of its frames). frequency_step : every n-th frequency, alike (ValueError
-    when the unambiguous range c / (2 n df) is shorter than the grid's range extent). A view is a frame, or all frames of a scan
-    (``Acquisition.scans``), whose samples scatter as seen from the scan's phase centres.
+    when the unambiguous range c / (2 n df) is shorter than the grid's range extent). A
+    view is a frame, or all frames of a scan (``Acquisition.scans``), whose samples scatter
+    as seen from the scan's phase centres.
     surface : "facets", flat triangles of f = 0 whose phase is integrated across them
     (``recon/surface_mesh.py``: the converged quadrature, as the simulator's), or "points",
     random points near it (``recon/surface.py``: a Monte Carlo quadrature, kept for comparison).
