@@ -3,6 +3,8 @@ the DCA1000 CLI's JSON, pose files, the board's antennas, and a capture written 
 data read back to the same measurements; every bad input one error line."""
 
 import json
+import pathlib
+import pickle
 import re
 
 import numpy as np
@@ -630,4 +632,117 @@ def test_rfsdf_import_refuses_a_bad_utd_capture_in_one_line(tmp_path, change, me
     assert result.exit_code == 0 and "6 views of 3 Tx x 4 Rx, 16 samples" in result.output, result.output
     (tmp_path / "data.h5").unlink()
     change(folder)
+    _refused_in_one_line(args, message, tmp_path / "data.h5")
+
+
+def _mito_capture(folder, scan=None):
+    """Two point targets below a raster (MITO's arm looks down, its Rx offset along y), written
+    as a MITO capture folder (rows of four frames) beside its params.json; returns the
+    measurements it holds."""
+    from rfsdf.radar.acquisition import Measurements
+    from rfsdf.radar.formats.mito import write_mito, write_mito_params
+
+    scan = _scan() * [1, 1, -1] if scan is None else scan  # 0.2 m above the targets
+    acquisition = CaptureGeometry(board("iwr1443"), (0, 0, -1), (0, -1, 0)).acquisition(CHIRP, scan)
+    points = torch.tensor([[0.0, 0.0, 0.0], [0.01, -0.02, 0.03]], dtype=torch.float64)
+    data = SensingOperator(acquisition).forward(points, torch.tensor([1.0, 0.5j], dtype=torch.complex128))
+    measurements = Measurements(acquisition, data)
+    write_mito(folder / "77_ghz", measurements, CHIRP, rx_offset="y", frames_per_row=4)
+    write_mito_params(folder / "params.json", CHIRP)
+    return measurements
+
+
+def test_rfsdf_import_reads_a_mito_capture_as_one_scan_with_its_params_json(tmp_path):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.radar import read_measurements
+
+    written = _mito_capture(tmp_path)
+    result = CliRunner().invoke(main, ["import", str(tmp_path / "77_ghz"), "--config", str(tmp_path / "params.json"),
+                                       "--out", str(tmp_path / "data.h5")])
+    assert result.exit_code == 0 and "1 view(s) of 12 frames of 1 Tx x 4 Rx, 16 samples" in result.output, result.output
+    back = read_measurements(tmp_path / "data.h5")
+    for name in ("tx_m", "rx_m", "frequencies_hz", "boresight"):
+        assert torch.allclose(getattr(back.acquisition, name), getattr(written.acquisition, name), rtol=0, atol=1e-9)
+    assert back.acquisition.num_views == 1
+    ratio = back.data.to(torch.complex128) / written.data  # one real scale to int16 counts, then their rounding
+    assert float((ratio / ratio.abs().mean() - 1).abs().max()) < 2e-3
+
+
+def test_a_mito_record_written_by_hand_imports_as_the_operators_model(tmp_path):
+    """Not through rfsdf's writer: a point target's IF as the IWR1443 records it, exp(+j 2 pi f
+    (d_tx + d_rx + 0.15 m) / c) / (d_tx d_rx), its Rx 5 mm + (3 - k) lambda/2 from the Tx on
+    the negative x side (rx offset "x"), in one record over a track logged at 1 ms; imported,
+    the operator's model of the same target up to one real scale."""
+    from rfsdf.radar.formats.mito import read_mito
+
+    capture = tmp_path / "77_ghz"
+    (capture / "radar_data").mkdir(parents=True)
+    period, created = 3e-3, 1000.0
+    tx = np.column_stack([np.arange(6) * 0.97e-3, np.zeros(6), np.full(6, 0.2)])  # frame j at created + j period
+    half = SPEED_OF_LIGHT / 79e9 / 2
+    rx = tx[:, None] - (0.005 + (3 - np.arange(4))[:, None] * half) * np.array([1.0, 0, 0])  # (F, 4, 3)
+    target = np.array([0.003, 0.004, 0.0])
+    d_tx, d_rx = np.linalg.norm(tx - target, axis=1), np.linalg.norm(rx - target, axis=2)
+    f = CHIRP.frequencies_hz()
+    path = (d_tx[:, None] + d_rx + 0.15)[..., None]  # (F, 4, 1)
+    raw = np.exp(2j * np.pi * f * path / SPEED_OF_LIGHT) / (d_tx[:, None] * d_rx)[..., None]
+    write_bin(capture / "radar_data" / "adc_data1700000000.bin", 3e4 * raw[:, None] / np.abs(raw).max(),
+              AdcLayout(4, True, 4, 16, 1))
+    (capture / "continuous_0.pkl").write_bytes(pickle.dumps({"all_radar_filenames": ["1700000000"],
+                                                            "all_radar_created_ts": [created]}))
+    track_times = created - 0.01 + np.arange(40) * 1e-3
+    along = np.interp(track_times, created + np.arange(6) * period, tx[:, 0])  # moving at 0.97 mm / 3 ms
+    np.savez(capture / "antenna_0.npz", times_77=track_times,
+             tx_77_locs=np.column_stack([along, np.zeros(40), np.full(40, 0.2), np.zeros(40)]))  # + an orientation
+    (tmp_path / "experiment_info.json").write_text('{"rx offset": "x", "aperture size": "normal"}')  # in exp<N>
+    imported = read_mito(capture, CHIRP)
+    assert imported.acquisition.shape == (6, 1, 4, 16)
+    assert np.allclose(imported.acquisition.rx_m.numpy(), rx, atol=1e-12)
+    model = SensingOperator(imported.acquisition).forward(torch.from_numpy(target[None]),
+                                                          torch.ones(1, dtype=torch.complex128))
+    ratio = (imported.data.to(torch.complex128) / model).flatten()
+    assert float((ratio / ratio.abs().mean() - 1).abs().max()) < 2e-3  # int16 rounding
+
+
+def test_frames_of_a_mito_row_where_the_arm_stood_still_are_dropped(tmp_path):
+    from rfsdf.radar.formats.mito import mito_chirp, read_mito
+
+    scan = _scan() * [1, 1, -1]
+    scan[1] = scan[0] + [1e-4, 0, 0]  # the second frame of the first row a tenth of a millimetre from the first
+    _mito_capture(tmp_path, scan)
+    back = read_mito(tmp_path / "77_ghz", mito_chirp(tmp_path / "params.json", tmp_path / "77_ghz"))
+    assert back.acquisition.shape[0] == 11
+    assert torch.allclose(back.acquisition.tx_m[:, 0], torch.from_numpy(np.delete(scan, 1, axis=0)), atol=1e-12)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda c, a: (c / "radar_data" / "adc_data1700000010.bin").unlink(),
+     r"radar_data: no adc_data1700000010\*.bin, which the arm's log lists"),
+    (lambda c, a: (c / "experiment_info.json").write_text('{"rx offset": "z", "aperture size": "normal"}'),
+     r"experiment_info.json: 'rx offset': 'z'; expected one of 'x', 'y'"),
+    (lambda c, a: (c / "experiment_info.json").unlink(), r"no experiment_info.json in it or the four folders above"),
+    (lambda c, a: (c / "continuous.pkl").write_bytes(pickle.dumps(pathlib.PurePosixPath("x"))),
+     r"continuous.pkl: cannot read as the arm's log .*pathlib.PurePosixPath is not part of a robot log"),
+    (lambda c, a: np.savez(c / "antenna.npz", times_77=np.arange(3.0), tx_77_locs=np.zeros((3, 3))),
+     "no frame lies within the track's times"),
+    (lambda c, a: np.savez(c / "antenna.npz", times_77=np.array([0.0, 0.0]), tx_77_locs=np.zeros((2, 3))),
+     "times_77 needs two or more samples in increasing order"),
+    (lambda c, a: (c / "radar_data" / "adc_data1700000000.bin").write_bytes(b"\0" * 100),
+     "size 100 bytes is not a whole"),
+    (lambda c, a: a.extend(["--config", a[3]]), "a MITO capture needs one --config"),
+    (lambda c, a: a.__setitem__(3, str(c.parent / "missing.json")), "missing.json: cannot read as JSON"),
+])
+def test_rfsdf_import_refuses_a_bad_mito_capture_in_one_line(tmp_path, change, message):
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+
+    _mito_capture(tmp_path)
+    capture = tmp_path / "77_ghz"
+    args = ["import", str(capture), "--config", str(tmp_path / "params.json"), "--out", str(tmp_path / "data.h5")]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    (tmp_path / "data.h5").unlink()
+    change(capture, args)
     _refused_in_one_line(args, message, tmp_path / "data.h5")

@@ -1,4 +1,4 @@
-"""Real captures in: rfsdf import (rfsdf's HDF5, a TI DCA1000 capture) and import-fmcw."""
+"""Real captures in: rfsdf import (rfsdf's HDF5, TI DCA1000, GeRaF, MITO, UT Dallas) and import-fmcw."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import click
 
 from .app import main, one_line_errors, refuse_overwriting_inputs
 
-FORMATS = ("auto", "hdf5", "dca1000", "geraf", "utd-mat")
+FORMATS = ("auto", "hdf5", "dca1000", "geraf", "mito", "utd-mat")
 _SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".bin": "dca1000", ".json": "dca1000"}  # .json: a setup.json
 
 
@@ -31,14 +31,17 @@ def _capture_format(capture: Path, name: str) -> str:
         return name
     if capture.is_dir():
         from ..radar.formats.geraf import is_geraf
+        from ..radar.formats.mito import is_mito
         from ..radar.formats.utd_mat import is_utd
 
         if is_geraf(capture):
             return "geraf"
+        if is_mito(capture):
+            return "mito"
         if is_utd(capture):
             return "utd-mat"
-        raise ValueError(f"{capture}: a folder, but neither GeRaF's (view folders holding tpos.npy) nor UT Dallas' "
-                         "(rawData.mat); pass --format")
+        raise ValueError(f"{capture}: a folder, but not GeRaF's (view folders holding tpos.npy), MITO's "
+                         "(radar_data/adc_data*.bin) or UT Dallas' (rawData.mat); pass --format")
     try:
         return _SUFFIXES[capture.suffix.lower()]
     except KeyError:
@@ -95,41 +98,46 @@ def _frequencies(configs: tuple[Path, ...]):
 @click.option("--out", type=click.Path(path_type=Path), required=True, help="Measurements file (.h5).")
 @click.option("--format", "format_name", type=click.Choice(FORMATS), default="auto", show_default=True,
               help="auto: by the name (.h5 hdf5; .bin, or mmWave Studio's .setup.json, dca1000; a folder "
-                   "of GeRaF views geraf; a folder holding rawData.mat utd-mat).")
+                   "of GeRaF views geraf; a folder holding radar_data/adc_data*.bin mito; a folder holding "
+                   "rawData.mat utd-mat).")
 @click.option("--config", "configs", type=click.Path(path_type=Path), multiple=True,
               help="dca1000, geraf: mmWave Studio's *.mmwave.json (or *.setup.json), and optionally the "
-                   "DCA1000 CLI's cf.json (lanes); geraf: or an rfsdf radar TOML (its waveform's frequencies).")
+                   "DCA1000 CLI's cf.json (lanes); geraf: or an rfsdf radar TOML (its waveform's frequencies); "
+                   "mito: MITO's params.json or an *.mmwave.json.")
 @click.option("--chip", default=None, help="dca1000: the board (antenna layout, lanes, IF sign, range delay): "
               "iwr1443, awr1843, iwr6843; default: the setup.json's mmWaveDevice.")
 @click.option("--poses", type=click.Path(path_type=Path), default=None,
               help="dca1000: CSV of Tx0 positions, x_m,y_m,z_m a frame or time_s,x_m,y_m,z_m interpolated at the frames.")
-@click.option("--boresight", default="0,0,1", show_default=True,
-              help="dca1000, geraf: the board's boresight X,Y,Z (geraf: in the turntable's rest frame).")
+@click.option("--boresight", default=None,
+              help="dca1000, geraf, mito: the board's boresight X,Y,Z (geraf: in the turntable's rest frame); "
+                   "default 0,0,1, mito 0,0,-1 (the arm looks down).")
 @click.option("--rx-axis", default="0,-1,0", show_default=True,
               help="dca1000: the direction X,Y,Z from the board's Tx0 to its Rx.")
 @click.option("--range-delay", "range_delay_m", type=float, default=None,
-              help="dca1000, geraf, utd-mat: the fixed range delay [m] to undo (default: the chip's, 0.15 for "
-                   "TI; geraf 0.15; utd-mat 0.15, or 0 with a delayOffset.mat).")
+              help="dca1000, geraf, mito, utd-mat: the fixed range delay [m] to undo (default: the chip's, 0.15 "
+                   "for TI; geraf 0.15; utd-mat 0.15, or 0 with a delayOffset.mat).")
 @click.option("--conjugate/--no-conjugate", default=None,
-              help="Conjugate the IF (default: the chip's sign for dca1000 and utd-mat, none for hdf5 and geraf).")
+              help="Conjugate the IF (default: the chip's sign for dca1000, mito and utd-mat, none for hdf5 and "
+                   "geraf).")
 @click.option("--one-view", is_flag=True,
               help="The capture's frames are one view (a scan at one turntable angle), imaged and fitted coherently "
-                   "(default: each frame a view; GeRaF: each view folder one view).")
+                   "(default: each frame a view; GeRaF: each view folder one view; MITO: its scan one view).")
 @one_line_errors
 def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, ...], chip: str | None,
-               poses: Path | None, boresight: str, rx_axis: str, range_delay_m: float | None,
+               poses: Path | None, boresight: str | None, rx_axis: str, range_delay_m: float | None,
                conjugate: bool | None, one_view: bool):
     """Convert a real capture into a measurements file: rfsdf's HDF5 layout; a TI DCA1000
     .bin (or mmWave Studio's setup.json) with its mmWave Studio config, board and pose file;
-    GeRaF's view folders with the chirp's config; or a UT Dallas MIMO-SAR folder of .mat
-    files (each frame a view unless --one-view, each GeRaF folder one; layouts in
-    docs/reference/formats.md)."""
+    GeRaF's view folders with the chirp's config; a MITO capture folder with its params.json;
+    or a UT Dallas MIMO-SAR folder of .mat files (each frame a view unless --one-view, each
+    GeRaF folder and each MITO scan one; layouts in docs/reference/formats.md)."""
     from ..radar import import_fmcw, write_measurements
 
     refuse_overwriting_inputs(out, capture, *configs, poses)
     kind = _capture_format(capture, format_name)
     if range_delay_m is not None and not math.isfinite(range_delay_m):
         raise ValueError(f"--range-delay: {range_delay_m} is not a finite length")
+    facing = _vector(boresight or ("0,0,-1" if kind == "mito" else "0,0,1"), "--boresight")
     if kind == "hdf5":
         measurements = import_fmcw(capture, conjugate=bool(conjugate))
     elif kind == "utd-mat":
@@ -139,9 +147,16 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
     elif kind == "geraf":
         from ..radar.formats.geraf import GERAF_RANGE_DELAY_M, read_geraf
 
-        measurements = read_geraf(capture, _frequencies(configs), boresight=_vector(boresight, "--boresight"),
+        measurements = read_geraf(capture, _frequencies(configs), boresight=facing,
                                   range_delay_m=GERAF_RANGE_DELAY_M if range_delay_m is None else range_delay_m,
                                   conjugate=bool(conjugate))
+    elif kind == "mito":
+        from ..radar.formats.mito import mito_chirp, read_mito
+
+        if len(configs) != 1:
+            raise ValueError(f"{capture}: a MITO capture needs one --config, MITO's params.json or an *.mmwave.json")
+        measurements = read_mito(capture, mito_chirp(configs[0], capture), boresight=facing,
+                                 range_delay_m=range_delay_m, conjugate=conjugate)
     else:
         from ..radar.boards import BOARDS, board
         from ..radar.formats.ti_capture import CaptureGeometry, import_ti_capture
@@ -152,7 +167,7 @@ def import_cmd(capture: Path, out: Path, format_name: str, configs: tuple[Path, 
         if chip is None and device not in BOARDS:
             raise ValueError(f"{capture}: a DCA1000 capture needs --chip (its setup names "
                              f"{device or 'no device'}; known: {', '.join(BOARDS)})")
-        geometry = CaptureGeometry(board(chip or device), _vector(boresight, "--boresight"),
+        geometry = CaptureGeometry(board(chip or device), facing,
                                    _vector(rx_axis, "--rx-axis"), range_delay_m, conjugate)
         measurements = import_ti_capture(bins, chirp, geometry, poses, lanes=lanes)
     if one_view:

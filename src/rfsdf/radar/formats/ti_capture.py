@@ -24,7 +24,7 @@ from .dca1000 import AdcLayout, read_bin, write_bin, write_cf_json
 from .mmwave_studio import ChirpConfig, write_mmwave_json, write_setup_json
 from .poses import read_poses
 
-__all__ = ["CaptureGeometry", "delay_phase", "import_ti_capture", "write_ti_capture"]
+__all__ = ["CaptureGeometry", "delay_phase", "import_ti_capture", "model_data", "recorded_counts", "write_ti_capture"]
 
 FULL_SCALE = 30_000  # int16 counts the writer gives the largest sample
 
@@ -83,10 +83,28 @@ def import_ti_capture(bin_paths, chirp: ChirpConfig, geometry: CaptureGeometry, 
     frames = len(cube)
     cube = cube.reshape(frames, chirp.loops, chirp.chirps_per_loop, chirp.rx, chirp.samples).mean(1)
     acquisition = geometry.acquisition(chirp, read_poses(poses, frames, chirp.frame_period_s))
-    data = torch.from_numpy(np.conj(cube) if geometry.flip else cube).to(torch.complex128)
-    data = data * delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
-    return Measurements(acquisition, data, None, {"source": ", ".join(map(str, bin_paths)),
+    return Measurements(acquisition, model_data(cube, acquisition, geometry), None, {"source": ", ".join(map(str, bin_paths)),
                                                   "chip": geometry.board.name, "poses": str(poses)})
+
+
+def model_data(cube: np.ndarray, acquisition: Acquisition, geometry: CaptureGeometry) -> torch.Tensor:
+    """(V, T, R, K) complex128: the board's samples ``cube`` with its IF sign and fixed delay
+    undone, as rfsdf's model y = sum c exp(-j 2 pi f (d_tx + d_rx) / c) has them."""
+    data = torch.from_numpy(np.conj(cube) if geometry.flip else cube).to(torch.complex128)
+    return data * delay_phase(acquisition.frequencies_hz, geometry.delay_m).conj()
+
+
+def recorded_counts(measurements: Measurements, chirp: ChirpConfig, geometry: CaptureGeometry):
+    """``measurements``' data (V, T, R, K) as the board records them, the fixed delay and IF sign
+    applied, in int16 counts (the largest part ``FULL_SCALE``): (cube, scale from data to counts).
+    The inverse of the importers' correction; ``chirp`` must have one loop and the data's frequencies."""
+    frequencies = measurements.acquisition.frequencies_hz
+    if chirp.loops != 1 or not np.allclose(chirp.frequencies_hz(), frequencies.numpy(), rtol=0, atol=1.0):
+        raise ValueError("chirp must have one loop and the measurements' frequencies")
+    data = measurements.data.to(torch.complex128) * delay_phase(frequencies, geometry.delay_m)
+    cube = (data.conj() if geometry.flip else data).resolve_conj().numpy()
+    scale = FULL_SCALE / max(np.abs(cube.real).max(), np.abs(cube.imag).max(), np.finfo(float).tiny)
+    return cube * scale, scale
 
 
 def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geometry: CaptureGeometry, *,
@@ -95,15 +113,10 @@ def write_ti_capture(folder, measurements: Measurements, chirp: ChirpConfig, geo
     applied, int16 counts) into ``folder``: ``adc_data.bin``, ``capture.mmwave.json``,
     ``capture.setup.json`` and ``cf.json``; returns the scale from data to counts. One loop a
     frame."""
-    frequencies = measurements.acquisition.frequencies_hz
-    if chirp.loops != 1 or not np.allclose(chirp.frequencies_hz(), frequencies.numpy(), rtol=0, atol=1.0):
-        raise ValueError("chirp must have one loop and the measurements' frequencies")
-    data = measurements.data.to(torch.complex128) * delay_phase(frequencies, geometry.delay_m)
-    cube = (data.conj() if geometry.flip else data).resolve_conj().numpy()
-    scale = FULL_SCALE / max(np.abs(cube.real).max(), np.abs(cube.imag).max(), np.finfo(float).tiny)
+    cube, scale = recorded_counts(measurements, chirp, geometry)
     folder = Path(folder)
     lanes = lanes or geometry.board.lanes
-    write_bin(folder / "adc_data.bin", cube * scale, _layout(chirp, lanes))
+    write_bin(folder / "adc_data.bin", cube, _layout(chirp, lanes))
     write_mmwave_json(folder / "capture.mmwave.json", chirp)
     write_setup_json(folder / "capture.setup.json", folder / "capture.mmwave.json", [folder / "adc_data.bin"],
                      geometry.board.name)
