@@ -142,12 +142,16 @@ def test_on_range_sidelobes_marks_a_weak_copy_on_a_bright_glints_line_of_sight()
     assert not lobe[np.abs(z - 0.0375) > 0.02].any()  # nothing else is marked
     assert not marked([blob(0, 0, 1.0) + blob(0.06, 0.0375, 0.1)], [above]).any()  # off the line of sight
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.5)], [above]).any()  # brighter than a sidelobe
+    # ... unless the level asks any detection under 0.6 of a brighter voxel on its line of sight to go
+    half = np.stack([blob(0, 0, 1.0) + blob(0, 0.0375, 0.5)]) ** 2
+    rule = dict(threshold=0.01, local_threshold=0.5, window_m=0.03)
+    assert on_range_sidelobes(half, np.array([above]), freqs, grid, level=0.6, **rule)[near_weak].all()
+    assert not on_range_sidelobes(half, np.array([above]), freqs, grid, level=0.4, **rule).any()
     side_view = blob(0, 0.0375, 0.1)  # seen from +x with nothing in its way
     assert not marked([blob(0, 0, 1.0) + blob(0, 0.0375, 0.1), side_view], [above, [1.0, 0.0, 0.0375]]).any()
     # a copy 18 cm (4.8 range resolutions) behind the glint is beyond the default reach of four, not beyond ten
     far = np.stack([blob(0, 0.09, 1.0) + blob(0, -0.09, 0.1)]) ** 2
     near_far = (np.abs(x) < 0.007) & (np.abs(y) < 0.007) & (np.abs(z + 0.09) < 0.007)
-    rule = dict(threshold=0.01, local_threshold=0.5, window_m=0.03)
     assert not on_range_sidelobes(far, np.array([above]), freqs, grid, **rule)[near_far].any()
     assert on_range_sidelobes(far, np.array([above]), freqs, grid, reach=10.0, **rule)[near_far].all()
 

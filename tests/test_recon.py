@@ -468,14 +468,16 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
             expected = in_front_of_ridges(per_view, centres, grid, **rule)
             assert expected.any()
         if blank:
-            expected = on_range_sidelobes(per_view, centres, data.acquisition.frequencies_hz.numpy(), grid, **rule)
+            expected = on_range_sidelobes(per_view, centres, data.acquisition.frequencies_hz.numpy(), grid,
+                                          level=ReconConfig().init.sidelobe_level, **rule)
         np.testing.assert_array_equal(seen["exclude"], expected)
     assert ReconConfig().init.blank_range_sidelobes and ReconConfig().init.carve_front
 
 
 def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(sphere_data, tmp_path, monkeypatch):
     """``[init] sidelobes_in_mf`` with the CLEAN method: what is a range sidelobe (within
-    ``sidelobe_reach``) in the matched filter's per-view images is left out too."""
+    ``sidelobe_reach``, under ``sidelobe_level``) in the matched filter's per-view images is
+    left out too."""
     import rfsdf.recon.trainer as trainer_module
     from rfsdf.radar import matched_filter
     from rfsdf.radar.clean import clean_image
@@ -491,10 +493,10 @@ def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(
     for in_mf in (False, True):
         settings = _config(steps=2).model_dump()
         settings["init"].update(method="clean", carve_front=False, threshold=0.05, sidelobe_reach=6.0,
-                                sidelobes_in_mf=in_mf)
+                                sidelobe_level=0.4, sidelobes_in_mf=in_mf)
         trainer = Trainer(Problem(data, grid, clean=clean), ReconConfig.model_validate(settings), tmp_path / f"{in_mf}")
         trainer.warm_start()
-        rule = {"threshold": 0.05, "local_threshold": 0.5, "window_m": 0.03, "reach": 6.0}
+        rule = {"threshold": 0.05, "local_threshold": 0.5, "window_m": 0.03, "reach": 6.0, "level": 0.4}
         expected = on_range_sidelobes(clean.per_view_power.numpy(), centres, frequencies, grid, **rule)
         if in_mf:
             expected |= on_range_sidelobes(mf, centres, frequencies, grid, **rule)
@@ -536,6 +538,12 @@ def test_the_geometrys_learning_rate_decays_over_every_step_or_from_its_release(
     assert rates["from_release"][6:] == pytest.approx([0.1 ** (step / 4) for step in range(4)])
     with pytest.raises(ValueError, match="geometry_schedule"):
         _config(geometry_schedule="later")
+
+
+@pytest.mark.parametrize("level", [0.0, 1.5, float("nan")])
+def test_a_sidelobe_level_outside_zero_to_one_is_refused(level):
+    with pytest.raises(ValueError, match="sidelobe_level"):
+        ReconConfig.model_validate({"init": {"sidelobe_level": level}})
 
 
 def test_a_fit_writes_no_progress_line_a_step_into_a_log(sphere_data, tmp_path, capsys):

@@ -88,7 +88,7 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
 
 def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, frequencies_hz, grid, *,
                        threshold: float, local_threshold: float, window_m: float,
-                       reach: float = SIDELOBE_REACH) -> np.ndarray:
+                       reach: float = SIDELOBE_REACH, level: float | None = None) -> np.ndarray:
     """(nx, ny, nz) bool: detected voxels that no view shows as more than a range sidelobe.
 
     A bright glint leaves, in the view that sees it, weak copies along that view's line of
@@ -97,14 +97,18 @@ def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, f
     the objects. A voxel of view v's own detection (as in :func:`in_front_of_ridges`) is a
     sidelobe in v when a voxel on its line of sight to v's array, between half a range
     resolution and ``reach`` of them away (within a tube of ``SIDELOBE_TUBE_VOXELS``),
-    is brighter than it by more than 1 / (the waveform's peak range sidelobe,
-    :func:`~rfsdf.radar.waveform.range_sidelobes`: 0.22 for 16 uniform frequencies). Marked
-    are the voxels that are a sidelobe in some view and genuine in none, so a weak surface
-    behind a bright one survives if any other view sees it.
+    is brighter than it by more than 1 / ``level`` (None: the waveform's peak range sidelobe,
+    :func:`~rfsdf.radar.waveform.range_sidelobes`, 0.22 for 16 uniform frequencies, the
+    level a point's sidelobes reach; an extended glint's far artifacts are stronger, and
+    an opaque surface cannot be lit by a view on the same line of sight as a brighter one,
+    which a level up to 1 states). Marked are the voxels that are a sidelobe in some view
+    and genuine in none, so a weak surface behind a bright one survives if any other view
+    sees it.
 
     per_view_power : (V, nx, ny, nz); view_centres_m : (V, 3) [m]; frequencies_hz : (K,).
     """
-    null_m, level = range_sidelobes(frequencies_hz)
+    null_m, peak_sidelobe = range_sidelobes(frequencies_hz)
+    level = peak_sidelobe if level is None else level
     if not np.isfinite(null_m):
         return np.zeros(grid.shape, bool)
     points = grid.points().double().numpy()

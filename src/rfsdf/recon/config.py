@@ -74,6 +74,12 @@ class InitConfig(StrictModel):
     # Chamfer 4.89 mm, 8: 4.30), and left the tabletop's warm start unchanged
     # (docs/results/demo-quality.md, "The floaters are far range sidelobes")
     sidelobe_reach: PositiveFloat = 8.0
+    # ... and weaker than this fraction of the brighter voxel there (two opaque surfaces on one
+    # line of sight cannot both be lit by a view; an extended glint's far artifacts are 2-30x a
+    # point's sidelobes). 0.5: demo warm start 4.31 -> 3.08-3.54 mm observed over three seeds,
+    # every untuned scene's detection better (docs/results/demo-quality.md, "Opaque lines of
+    # sight"); None: the waveform's peak range sidelobe (0.22, the earlier rule)
+    sidelobe_level: float | None = Field(0.5, gt=0, le=1)
     # with method "clean": also blank what is a sidelobe in the matched-filter per-view images,
     # not only in CLEAN's (CLEAN keeps a far sidelobe as a component of its own). Demo 4.30 ->
     # 3.16 mm, but tabletop 4.29 -> 4.58 (real faces dropped), so off by default

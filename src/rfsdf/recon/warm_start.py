@@ -69,7 +69,8 @@ def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, t
         frequencies = acquisition.frequencies_hz.cpu().numpy()
         images = [per_view_power] + ([matched_filter_power] if matched_filter_power is not None else [])
         for power in images:
-            exclude |= on_range_sidelobes(power, centres, frequencies, grid, reach=init.sidelobe_reach, **rule)
+            exclude |= on_range_sidelobes(power, centres, frequencies, grid, reach=init.sidelobe_reach,
+                                          level=init.sidelobe_level, **rule)
     return exclude
 
 
