@@ -76,7 +76,7 @@ class InitConfig(StrictModel):
     sidelobe_reach: PositiveFloat = 8.0
     # ... and weaker than this fraction of the brighter voxel there (two opaque surfaces on one
     # line of sight cannot both be lit by a view; an extended glint's far artifacts are 2-30x a
-    # point's sidelobes). 0.5: demo warm start 4.31 -> 3.08-3.54 mm observed over three seeds,
+    # point's sidelobes). 0.5: demo warm start 4.11-4.36 -> 3.08-3.54 mm observed over three seeds,
     # every untuned scene's detection better (docs/results/demo-quality.md, "Opaque lines of
     # sight"); None: the waveform's peak range sidelobe (0.22, the earlier rule)
     sidelobe_level: float | None = Field(0.5, gt=0, le=1)
