@@ -93,6 +93,38 @@ def test_in_front_of_ridges_marks_the_radar_side_half_of_a_range_blob():
     assert not front[np.abs(x) > 0.03].any()  # outside the blob nothing is marked
 
 
+def test_range_peaks_place_a_point_between_voxel_centres_to_a_fraction_of_a_millimetre():
+    """A point 2.8 mm off the nearest 6 mm voxel centre along the range, seen by a monostatic
+    planar array on its axis: the detection's brightest ridge voxel is that far off the
+    point's range, its refined peak within 0.1 mm of it; ridges whose peak lies beyond the
+    span are dropped."""
+    from rfsdf.radar import Measurements, matched_filter
+    from rfsdf.radar.operator import SensingOperator
+    from rfsdf.radar.range_peaks import range_peaks
+
+    xs = np.linspace(-0.019, 0.019, 21)  # lambda / 2 apart: no grating lobes
+    pos = torch.tensor([[x, y, 0.0] for x in xs for y in xs], dtype=torch.float64)[None]
+    acq = Acquisition(pos, pos.clone(), torch.linspace(77e9, 81e9, 16, dtype=torch.float64),
+                      torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64))
+    target = torch.tensor([[0.0011, -0.0007, 0.1078]], dtype=torch.float64)  # voxel centres at z = 0.105, 0.111
+    data = SensingOperator(acq).forward(target, torch.ones(1, dtype=torch.complex128))
+    measurements = Measurements(acq, data)
+    grid = Grid((-0.03, -0.03, 0.072), (0.03, 0.03, 0.132), (10, 10, 10))
+    per_view = (matched_filter(measurements, grid).per_view.abs() ** 2).numpy()
+    peaks = range_peaks(measurements, per_view, grid, threshold=0.3, local_threshold=0.5, window_m=0.03)
+    brightest = peaks.points[peaks.amplitude.argmax()]
+    voxel = grid.points().double().numpy()[np.argmin(np.linalg.norm(grid.points().double().numpy()
+                                                                     - target.numpy(), axis=1))]
+    target_range = float(target.norm())
+    assert abs(np.linalg.norm(voxel) - target_range) > 0.002  # the voxel's own error
+    assert abs(np.linalg.norm(brightest) - target_range) < 1e-4
+    assert np.allclose(peaks.towards[peaks.amplitude.argmax()], -brightest / np.linalg.norm(brightest), atol=0.05)
+    assert peaks.amplitude.max() == 1.0 and (peaks.view == 0).all()
+    narrow = range_peaks(measurements, per_view, grid, threshold=0.3, local_threshold=0.5, window_m=0.03,
+                         span_m=0.0005, step_m=0.0005)
+    assert len(narrow.points) < len(peaks.points)  # ridges whose peak is over 0.5 mm away are dropped
+
+
 def test_range_sidelobes_match_the_dirichlet_kernel():
     """K uniform frequencies: the range profile is |sin(K x) / (K sin x)|, x = 2 pi delta_f d / c,
     its first null at c / 2B and its peak sidelobe (computed here from that closed form on a

@@ -414,6 +414,27 @@ def test_the_warm_start_turns_only_the_faces_the_views_see_towards_them():
     assert cosine[0.1]["radial_below"] > 0.95, cosine
 
 
+def test_the_warm_start_passes_through_the_range_peaks_where_the_target_is_half_a_voxel_off():
+    """A ball whose voxel target stands 3 mm outside it (a boundary drawn half a voxel beyond
+    the detection): regressed alone, f's zero set follows the target; with points on the true
+    sphere as range peaks (``surface_m``, weighted by ``surface_weight``) it passes through them."""
+    target = lambda p: p.norm(dim=1) - 0.053  # noqa: E731
+    sphere = 0.05 * torch.nn.functional.normalize(torch.randn(3000, 3, generator=torch.Generator().manual_seed(1)),
+                                                  dim=1)
+    offset = {}
+    for weight in (0.0, 1.0):
+        torch.manual_seed(0)
+        field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=4, depth=4, width=64)
+        fit_to_image(field, (-0.1,) * 3, (0.1,) * 3, target, None, steps=150, lr=1e-3, batch=2048,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=sphere,
+                     near_share=0.25, near_jitter_m=0.006, surface_m=sphere[:1500],
+                     surface_weights=torch.ones(1500), surface_weight=weight)
+        with torch.no_grad():
+            offset[weight] = float(field.sdf(sphere[1500:]).mean())  # points the term never saw
+    assert offset[0.0] == pytest.approx(-0.003, abs=0.0007), offset
+    assert abs(offset[1.0]) < 0.001, offset
+
+
 def test_the_detection_target_closes_two_glints_of_one_object_into_one_volume():
     """Two bright 3-voxel cubes one voxel apart: without closing two inside sets (the gap
     outside), closed over 2 voxels one (the gap inside); far voxels are outside by their distance."""
@@ -472,6 +493,35 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
                                           level=ReconConfig().init.sidelobe_level, **rule)
         np.testing.assert_array_equal(seen["exclude"], expected)
     assert ReconConfig().init.blank_range_sidelobes and ReconConfig().init.carve_front
+
+
+def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(sphere_data, tmp_path, monkeypatch):
+    """``[init] peak_weight`` (on by default) hands the warm start the range peaks of the
+    per-view images of its method (here the MF's), from the ridges it does not exclude;
+    0 hands it none."""
+    import rfsdf.recon.trainer as trainer_module
+    from rfsdf.radar.range_peaks import range_peaks
+
+    _, data = sphere_data
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
+    for weight in (0.0, 2.0):
+        settings = _config(steps=2).model_dump()
+        settings["init"].update(method="mf", threshold=0.05, peak_weight=weight)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{weight}")
+        trainer.warm_start()
+        assert seen["peak_weight"] == weight
+        if weight == 0:
+            assert seen["peaks"] is None
+    grid = trainer.problem.grid
+    per_view = (trainer.observed**2).reshape(-1, *grid.shape).numpy()
+    expected = range_peaks(data, per_view, grid, threshold=0.05, local_threshold=0.5, window_m=0.03,
+                           keep=~seen["exclude"])
+    everything = range_peaks(data, per_view, grid, threshold=0.05, local_threshold=0.5, window_m=0.03)
+    np.testing.assert_allclose(seen["peaks"].points, expected.points)
+    assert set(seen["peaks"].view) == set(range(data.acquisition.num_views))
+    assert seen["exclude"].any() and len(expected.points) < len(everything.points)
+    assert ReconConfig().init.peak_weight > 0
 
 
 def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(sphere_data, tmp_path, monkeypatch):

@@ -21,7 +21,7 @@ from scipy import ndimage
 from .waveform import range_sidelobes
 
 __all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges",
-           "on_range_sidelobes"]
+           "range_ridges", "on_range_sidelobes"]
 
 SIDELOBE_REACH = 4.0  # on_range_sidelobes' default: this many range resolutions along each line of sight
 SIDELOBE_TUBE_VOXELS = 3  # ... within a tube of this many voxels across it
@@ -76,14 +76,34 @@ def in_front_of_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, g
 
     per_view_power : (V, nx, ny, nz) per-view image power; grid : the images' Grid.
     """
+    front = np.zeros(grid.shape, bool)
+    for _, in_front, _ in _ridge_split(per_view_power, view_centres_m, grid, threshold=threshold,
+                                         local_threshold=local_threshold, window_m=window_m):
+        front |= in_front
+    return front
+
+
+def range_ridges(per_view_power: np.ndarray, view_centres_m: np.ndarray, grid, *, threshold: float,
+                 local_threshold: float, window_m: float):
+    """Per view, its range ridges: (flat indices (n,) of the voxels of its own detection that
+    are not in front of a brighter voxel, as :func:`in_front_of_ridges` decides; unit vectors
+    (n, 3) from them towards the view's array centre). Where the view's seen surface lies, to
+    a voxel."""
+    for own, in_front, towards in _ridge_split(per_view_power, view_centres_m, grid, threshold=threshold,
+                                               local_threshold=local_threshold, window_m=window_m):
+        index = np.flatnonzero(own & ~in_front)
+        yield index, towards[index]
+
+
+def _ridge_split(per_view_power, view_centres_m, grid, *, threshold, local_threshold, window_m):
+    """Per view: its own detection, the part of it in front of a brighter voxel one voxel
+    further from the view (both bool, grid.shape), and the unit vectors (N, 3) towards the view."""
     behind = float(np.max(grid.voxel_m))
     points = grid.points().double().numpy()
-    front = np.zeros(grid.shape, bool)
     for amplitude, own, towards in _view_detections(per_view_power, view_centres_m, grid, points, threshold=threshold,
                                                     local_threshold=local_threshold, window_m=window_m):
         further = _sampled(amplitude, grid, points - behind * towards)
-        front |= own & (further.reshape(grid.shape) > amplitude)
-    return front
+        yield own, own & (further.reshape(grid.shape) > amplitude), towards
 
 
 def on_range_sidelobes(per_view_power: np.ndarray, view_centres_m: np.ndarray, frequencies_hz, grid, *,

@@ -20,7 +20,7 @@ from .fast_imaging import DEFAULT_OVERSAMPLING, fast_adjoint
 from .operator import SensingOperator
 
 __all__ = ["IMAGING_METHODS", "FAST_MIN_FREQUENCIES", "imaging_method", "Image", "require_image_memory",
-           "matched_filter", "point_spread", "half_power_width", "safe_divide"]
+           "matched_filter", "view_correlation", "point_spread", "half_power_width", "safe_divide"]
 
 IMAGING_METHODS = ("auto", "exact", "fast")
 # The exact adjoint costs K vectorised complex multiply-adds per pair and voxel (GEMMs), the
@@ -91,12 +91,34 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
     if acq.scans is None:
         numerator, norms = _back_projection(acq, measurements.data, points, fast, oversampling, True, progress)
     else:
-        parts = [_back_projection(acq.coherent_view(v), measurements.data[acq.frames(v)], points, fast, oversampling,
-                                  False, False)
+        parts = [_one_view(measurements, v, points, fast, oversampling)
                  for v in progress_bar(range(acq.num_views), desc="scans", enabled=progress)]
         numerator, norms = (torch.stack(t) for t in zip(*parts))
     shape = (acq.num_views, *grid.shape)
     return Image(grid, safe_divide(numerator, norms).reshape(shape).cpu(), norms.reshape(shape).cpu())
+
+
+def view_correlation(measurements: Measurements, view: int, points: torch.Tensor, *, method: str = "auto",
+                     oversampling: int = DEFAULT_OVERSAMPLING) -> torch.Tensor:
+    """(Q,) float: |A_q^H y| / ||A_q|| of view ``view`` alone (a frame, or a scan's frames
+    summed coherently) at any ``points`` (Q, 3) [m], not only a grid's voxels; ``method`` as in
+    :func:`matched_filter`. The matched filter over the column's norm, not its square as in
+    c_hat: by Cauchy-Schwarz a point target's is largest exactly at the point, where |c_hat|
+    peaks further from the array (the norm falls with the spreading)."""
+    fast = imaging_method(measurements.acquisition, method, points.device) == "fast"
+    numerator, norms = _one_view(measurements, view, points, fast, oversampling)
+    return safe_divide(numerator.abs(), norms.sqrt()).reshape(-1)
+
+
+def _one_view(measurements: Measurements, view: int, points: torch.Tensor, fast: bool,
+              oversampling: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """A_v^H y_v and ||A_v||^2 of view ``view`` at ``points``, each (Q,) or (1, Q)."""
+    acq = measurements.acquisition
+    if acq.scans is None:
+        return _back_projection(acq.view(view), measurements.data[view:view + 1], points, fast, oversampling,
+                                True, False)
+    return _back_projection(acq.coherent_view(view), measurements.data[acq.frames(view)], points, fast,
+                            oversampling, False, False)
 
 
 def _back_projection(acq: Acquisition, data: torch.Tensor, points: torch.Tensor, fast: bool, oversampling: int,

@@ -89,6 +89,10 @@ class InitConfig(StrictModel):
     # the surface's, and its normals on the seen faces were 42 degrees off (12 with 0.01;
     # docs/results/demo-quality.md, "Normals from the views"); 0 turns it off
     normal_weight: NonNegativeFloat = 0.01
+    # pull the zero set through each view's range ridges refined along its line of sight on
+    # its matched filter (radar.range_peaks: 4.0 -> 1.2 mm from the truth, median, on the
+    # demo), weight of that L1 term beside the target's; 0 turns it off
+    peak_weight: NonNegativeFloat = 1.0
 
     @field_validator("threshold", mode="before")
     @classmethod

@@ -30,6 +30,7 @@ from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements, matched_filter
 from ..radar.clean import CleanResult, clean_image
+from ..radar.range_peaks import range_peaks
 from ..radar.specular import specular_normals
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
@@ -232,10 +233,15 @@ class Trainer:
         normals = None
         if ic.normal_weight > 0:
             normals = specular_normals(per_view, *(c.cpu().numpy() for c in acquisition.view_centres()), grid)
+        peaks = None
+        if ic.peak_weight > 0:
+            peaks = range_peaks(self.problem.measurements, per_view, grid, threshold=threshold,
+                                local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude)
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
-                   eikonal_weight=ic.eikonal_weight, generator=self.generator, progress=self.progress)
+                   peaks=peaks, peak_weight=ic.peak_weight, eikonal_weight=ic.eikonal_weight,
+                   generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:

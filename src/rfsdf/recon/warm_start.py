@@ -32,6 +32,7 @@ from scipy import ndimage
 from ..geometry import Grid, gradient, interpolated_sdf, trilinear
 from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
+from ..radar.range_peaks import RangePeaks
 from .losses import eikonal_penalty
 
 __all__ = ["detection_threshold", "excluded_voxels", "mask_signed_distance", "detection_target",
@@ -97,7 +98,9 @@ def local_peak_amplitude(power: np.ndarray, window_voxels: int) -> np.ndarray:
 def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectivity: Callable | None, *,
                  steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                  near_m: torch.Tensor | None = None, near_share: float = 0.0, near_jitter_m: float = 0.0,
-                 target_normal: Callable | None = None, normal_weight: float = 0.0, progress: bool = False) -> float:
+                 target_normal: Callable | None = None, normal_weight: float = 0.0,
+                 surface_m: torch.Tensor | None = None, surface_weights: torch.Tensor | None = None,
+                 surface_weight: float = 0.0, progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
     Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
@@ -109,7 +112,9 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     mean bisectors m, :func:`~rfsdf.radar.specular.specular_normals`) the same quarter adds
     ``normal_weight`` * |m| (1 - cos(grad f, m)) where the target's own normal faces m: the
     faces the views see turn towards where the views say they face, the others are left alone.
-    Returns the last clipped L1 residual of f [m].
+    With ``surface_m`` (M, 3) [m], points the surface is known to pass through, and their
+    ``surface_weights`` (M,), the loss adds ``surface_weight`` * |f| at a quarter batch of them
+    drawn in proportion to their weights. Returns the last clipped L1 residual of f [m].
     """
     device = next(field.parameters()).device
     lower = torch.as_tensor(lower_m, dtype=torch.float32)
@@ -133,6 +138,9 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         if target_normal is not None and normal_weight > 0:
             facing = gradient(target_sdf, shaped)
             loss = loss + normal_weight * _facing_misfit(grad, target_normal(shaped), facing)
+        if surface_m is not None and len(surface_m) and surface_weight > 0:
+            pick = torch.multinomial(surface_weights, max(1, batch // 4), replacement=True, generator=generator)
+            loss = loss + surface_weight * field.sdf(surface_m[pick].to(device)).abs().mean()
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
@@ -173,13 +181,17 @@ def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_t
 def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                near_share: float = 0.0, exclude: np.ndarray | None = None, normals: np.ndarray | None = None,
-               normal_weight: float = 0.0, progress: bool = False) -> float:
+               normal_weight: float = 0.0, peaks: RangePeaks | None = None, peak_weight: float = 0.0,
+               progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
     signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
     amplitude (both interpolated between voxel centres), and with ``normals`` ((3, *grid.shape)
     mean bisectors, :func:`~rfsdf.radar.specular.specular_normals`) the seen faces' normals to
-    them (``normal_weight``, see :func:`fit_to_image`). ``window_m`` [m] is the local window's
-    edge. Returns the last clipped L1 residual of f [m]."""
+    them (``normal_weight``, see :func:`fit_to_image`). With ``peaks``
+    (:func:`~rfsdf.radar.range_peaks.range_peaks`), the zero set is pulled through those within
+    a voxel of the target's boundary (``peak_weight``, weighted by their amplitude): the
+    views' surface to a fraction of a voxel where the target has it to half of one.
+    ``window_m`` [m] is the local window's edge. Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
     signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
                               closing_m=closing_m, exclude=exclude)
@@ -187,6 +199,12 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     peak = torch.from_numpy(local_peak_amplitude(power, window_voxels(window_m, grid))).to(device)
     voxel = float(np.max(grid.voxel_m))
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
+    surface, weights = None, None
+    if peaks is not None and peak_weight > 0:
+        surface = torch.from_numpy(peaks.points).float().to(device)
+        on_boundary = interpolated_sdf(distance, grid)(surface).abs() <= voxel
+        surface = surface[on_boundary]
+        weights = torch.from_numpy(peaks.amplitude).float().to(device)[on_boundary]
     target_normal = None
     if normals is not None:
         target_normal = trilinear(torch.from_numpy(np.ascontiguousarray(normals)).to(device), grid)
@@ -194,5 +212,5 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                         trilinear(peak, grid), steps=steps, lr=lr, batch=batch,
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                         near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
-                        progress=progress)
+                        surface_m=surface, surface_weights=weights, surface_weight=peak_weight, progress=progress)
 
