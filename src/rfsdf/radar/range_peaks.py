@@ -60,7 +60,8 @@ def range_peaks(measurements: Measurements, per_view_power: np.ndarray, grid, *,
     for view, (index, towards) in enumerate(range_ridges(per_view_power, centres, grid, threshold=threshold,
                                                           local_threshold=local_threshold, window_m=window_m)):
         if keep is not None:
-            towards, index = towards[keep.ravel()[index]], index[keep.ravel()[index]]
+            kept = keep.ravel()[index]
+            towards, index = towards[kept], index[kept]
         if not len(index):
             continue
         line = points[index, None, :] - offsets[None, :, None] * towards[:, None, :]

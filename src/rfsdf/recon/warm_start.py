@@ -199,16 +199,17 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     peak = torch.from_numpy(local_peak_amplitude(power, window_voxels(window_m, grid))).to(device)
     voxel = float(np.max(grid.voxel_m))
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
+    target = interpolated_sdf(distance, grid)
     surface, weights = None, None
     if peaks is not None and peak_weight > 0:
         surface = torch.from_numpy(peaks.points).float().to(device)
-        on_boundary = interpolated_sdf(distance, grid)(surface).abs() <= voxel
+        on_boundary = target(surface).abs() <= voxel
         surface = surface[on_boundary]
         weights = torch.from_numpy(peaks.amplitude).float().to(device)[on_boundary]
     target_normal = None
     if normals is not None:
         target_normal = trilinear(torch.from_numpy(np.ascontiguousarray(normals)).to(device), grid)
-    return fit_to_image(field, grid.lower_m, grid.upper_m, interpolated_sdf(distance, grid),
+    return fit_to_image(field, grid.lower_m, grid.upper_m, target,
                         trilinear(peak, grid), steps=steps, lr=lr, batch=batch,
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                         near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
