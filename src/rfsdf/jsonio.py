@@ -1,5 +1,5 @@
 """JSON that every parser reads: NaN and infinities become null (json.dumps writes bare NaN);
-written atomically."""
+written atomically; read with one error line naming the file."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import json
 import math
 
 from .atomic import atomic_path
+from .errors import RfsdfError
 
-__all__ = ["to_json", "write_json"]
+__all__ = ["to_json", "write_json", "read_json"]
 
 
 def _finite(value):
@@ -30,3 +31,14 @@ def write_json(path, value) -> None:
     """Write :func:`to_json` of ``value`` to ``path``, atomically (a crash leaves no half file)."""
     with atomic_path(path) as tmp:
         tmp.write_text(to_json(value))
+
+
+def read_json(path):
+    """The JSON document in ``path``; a file that cannot be read or is not JSON is one
+    :class:`RfsdfError` naming it."""
+    try:
+        return json.loads(path.read_text())
+    except OSError as exc:
+        raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise RfsdfError(f"{path}: not JSON ({exc})") from None

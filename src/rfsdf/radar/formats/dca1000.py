@@ -22,6 +22,7 @@ import numpy as np
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ...jsonio import read_json
 
 __all__ = ["AdcLayout", "read_bin", "write_bin", "read_cf_json", "write_cf_json"]
 
@@ -125,13 +126,10 @@ _SIXTEEN_BITS = 3
 def read_cf_json(path) -> int:
     """The number of LVDS lanes in a DCA1000 CLI ``cf.json`` (which must capture 16-bit samples)."""
     path = Path(path)
+    document = read_json(path)
     try:
-        config = json.loads(path.read_text())["DCA1000Config"]
+        config = document["DCA1000Config"]
         mode, bits = config["lvdsMode"], config["dataFormatMode"]
-    except OSError as exc:
-        raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise RfsdfError(f"{path}: not JSON ({exc})") from None
     except (KeyError, TypeError) as exc:
         raise RfsdfError(f"{path}: DCA1000Config.{exc.args[0] if exc.args else ''}: missing") from None
     if mode not in _LVDS_MODES:

@@ -39,11 +39,12 @@ import torch
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ...jsonio import read_json
 from ...limits import require_memory
 from ..acquisition import SPEED_OF_LIGHT, Measurements
 from ..boards import board
 from .dca1000 import AdcLayout, read_bin, write_bin
-from .mmwave_studio import ChirpConfig, read_mmwave_json
+from .mmwave_studio import ChirpConfig, mmwave_chirp
 from .ti_capture import CaptureGeometry, model_data, recorded_counts
 
 __all__ = ["MITO_SAMPLE_RATE_HZ", "is_mito", "mito_chirp", "read_mito", "write_mito", "write_mito_params"]
@@ -66,10 +67,7 @@ def _experiment_info(folder: Path) -> tuple[Path, dict]:
     for parent in [folder, *folder.parents][:5]:
         path = parent / _INFO
         if path.is_file():
-            try:
-                info = json.loads(path.read_text())
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise RfsdfError(f"{path}: cannot read as JSON ({getattr(exc, 'strerror', None) or exc})") from None
+            info = read_json(path)
             if not isinstance(info, dict):
                 raise RfsdfError(f"{path}: not a JSON object")
             return path, info
@@ -89,12 +87,9 @@ def mito_chirp(config, capture) -> ChirpConfig:
     """The chirp of a MITO ``capture`` folder from ``config``: an mmWave Studio ``*.mmwave.json``,
     or MITO's ``params.json`` (its entry for the capture's ``aperture size``)."""
     config = Path(config)
-    try:
-        document = json.loads(config.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise RfsdfError(f"{config}: cannot read as JSON ({getattr(exc, 'strerror', None) or exc})") from None
+    document = read_json(config)
     if not (isinstance(document, dict) and "robot_collected" in document):
-        return read_mmwave_json(config)
+        return mmwave_chirp(config, document)
     aperture = _info_field(Path(capture), "aperture size")
     where = f"robot_collected.77_ghz.{aperture}"
     try:

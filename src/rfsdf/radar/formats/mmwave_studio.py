@@ -25,6 +25,7 @@ import numpy as np
 
 from ...atomic import atomic_path
 from ...errors import RfsdfError
+from ...jsonio import read_json
 from ..waveform import fmcw_frequencies
 
 __all__ = ["ChirpConfig", "read_mmwave_json", "write_mmwave_json", "CaptureSetup", "read_setup_json",
@@ -81,21 +82,14 @@ def _where(keys) -> str:
     return "".join(f"[{key}]" if isinstance(key, int) else f".{key}" for key in keys).lstrip(".")
 
 
-def _json(path: Path):
-    try:
-        return json.loads(path.read_text())
-    except OSError as exc:
-        raise RfsdfError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise RfsdfError(f"{path}: not JSON ({exc})") from None
-
-
 def read_mmwave_json(path) -> ChirpConfig:
     """The :class:`ChirpConfig` of an mmWave Studio ``*.mmwave.json``; one error line naming the
     file and the field for anything missing or out of range."""
-    path = Path(path)
-    document = _json(path)
+    return mmwave_chirp(Path(path), read_json(Path(path)))
 
+
+def mmwave_chirp(path: Path, document) -> ChirpConfig:
+    """:func:`read_mmwave_json` of the ``document`` already read from ``path``."""
     def field(*keys, required=True):
         value = document
         for depth, key in enumerate(keys):
@@ -186,7 +180,7 @@ def read_setup_json(path) -> CaptureSetup:
     """The :class:`CaptureSetup` of an mmWave Studio ``*.setup.json`` (one error line naming the
     file and field for anything missing, or a file it names that cannot be found)."""
     path = Path(path)
-    document = _json(path)
+    document = read_json(path)
     if not isinstance(document, dict):
         raise RfsdfError(f"{path}: not a setup.json (a JSON object)")
     config_used = document.get("configUsed")
