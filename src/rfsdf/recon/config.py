@@ -171,6 +171,11 @@ class LossConfig(StrictModel):
     material_entropy_weight: NonNegativeFloat = 0.01
     # cross-entropy against known labels (Problem.material_labels), only where they are given
     material_label_weight: NonNegativeFloat = 1.0
+    # hold the zero set through the warm start's range peaks while the geometry moves: this
+    # times the amplitude-weighted mean |f| [m] over all of them, each step (the peaks place
+    # the seen faces to 1.1 mm, finer than the pooled amplitude loss sees; docs/results/
+    # demo-quality.md, "The peaks held in the fit"); 0 leaves them to the warm start
+    peak_weight: NonNegativeFloat = 1000.0
 
     @field_validator("data")
     @classmethod

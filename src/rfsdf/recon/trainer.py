@@ -167,6 +167,7 @@ class Trainer:
         self.step = 0
         self.log: list[StepRecord] = []
         self.warm_state: dict | None = None  # the field's state after the warm start
+        self.peaks: tuple[torch.Tensor, torch.Tensor] | None = None  # the warm start's range peaks: (N, 3), (N,)
 
     # Checkpoints -------------------------------------------------------------------------
     @property
@@ -180,6 +181,7 @@ class Trainer:
             "generator": self.generator.get_state(), "surface": self.renderer.surface_state(),
             "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
             "data_digest": self.problem.digest(), "data_source": self.problem.source, "gain": self.problem.gain,
+            "peaks": self.peaks,
         })
         write_log(self.run_dir, [asdict(r) for r in self.log])
 
@@ -201,6 +203,7 @@ class Trainer:
             self.step = state["step"]
             self.log = [StepRecord(**row) for row in state["log"]]
             self.warm_state = state["warm_field"]
+            self.peaks = state["peaks"]
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             if isinstance(exc, RfsdfError):
                 raise
@@ -234,13 +237,17 @@ class Trainer:
         if ic.normal_weight > 0:
             normals = specular_normals(per_view, *(c.cpu().numpy() for c in acquisition.view_centres()), grid)
         peaks = None
-        if ic.peak_weight > 0:
+        if ic.peak_weight > 0 or self.config.loss.peak_weight > 0:
             peaks = range_peaks(self.problem.measurements, per_view, grid, threshold=threshold,
                                 local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude)
+            if len(peaks.points):
+                self.peaks = (torch.from_numpy(peaks.points).float().to(self.device),
+                              torch.from_numpy(peaks.amplitude).float().to(self.device))
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
-                   peaks=peaks, peak_weight=ic.peak_weight, eikonal_weight=ic.eikonal_weight,
+                   peaks=peaks if ic.peak_weight > 0 else None, peak_weight=ic.peak_weight,
+                   eikonal_weight=ic.eikonal_weight,
                    generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
@@ -310,6 +317,11 @@ class Trainer:
             eikonal = eikonal_loss(self.field.sdf, eik_points.to(self.device))
         terms["eikonal"] = eikonal
         terms["loss"] = data + cfg.loss.eikonal_weight * eikonal + terms.get("material", 0.0)
+        if not frozen and cfg.loss.peak_weight > 0 and self.peaks is not None:
+            points, amplitude = self.peaks
+            held = (self.field.sdf(points).abs() * amplitude).sum() / amplitude.sum()
+            terms["peaks"] = cfg.loss.peak_weight * held
+            terms["loss"] = terms["loss"] + terms["peaks"]
         return terms
 
     def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> FitResult:
