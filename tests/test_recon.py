@@ -463,7 +463,7 @@ def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_dat
     trainer.refresh_surface()
     terms = {key: float(value.detach()) for key, value in trainer.loss_terms().items()}
     assert seen["eikonal_weight"] == 0.03 and terms["eikonal"] > 0
-    assert terms["loss"] == pytest.approx(terms["data"] + 0.1 * terms["eikonal"], rel=1e-5)
+    assert terms["loss"] == pytest.approx(terms["data"] + 0.1 * terms["eikonal"] + terms["peaks"], rel=1e-5)
 
 
 def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves(sphere_data, tmp_path, monkeypatch):
