@@ -85,7 +85,8 @@ def _where(keys) -> str:
 def read_mmwave_json(path) -> ChirpConfig:
     """The :class:`ChirpConfig` of an mmWave Studio ``*.mmwave.json``; one error line naming the
     file and the field for anything missing or out of range."""
-    return mmwave_chirp(Path(path), read_json(Path(path)))
+    path = Path(path)
+    return mmwave_chirp(path, read_json(path))
 
 
 def mmwave_chirp(path: Path, document) -> ChirpConfig:
