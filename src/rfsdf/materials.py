@@ -184,7 +184,7 @@ def fresnel_of_cosine(cos_inc, eps, polarization: str = "TE") -> torch.Tensor:
     so a renderer can take gradients through the incidence geometry. complex128."""
     if polarization not in POLARIZATIONS:
         raise ValueError(f"polarization must be one of {POLARIZATIONS}, got {polarization!r}")
-    cos_t = torch.as_tensor(cos_inc).to(torch.float64)
+    cos_t = torch.as_tensor(cos_inc, dtype=torch.float64)
     eps = _as_eps(eps).to(cos_t.device)
     if polarization == "mean":
         te, tm = fresnel_of_cosine(cos_t, eps, "TE"), fresnel_of_cosine(cos_t, eps, "TM")

@@ -1,0 +1,80 @@
+"""Dielectric slabs: reflection and transmission of a layer of finite thickness (ITU-R P.2040).
+
+A plane wave meets a slab of relative permittivity eps and thickness d at incidence angle
+theta in air. With the single interface's Fresnel coefficient R' (:func:`~rfsdf.materials.fresnel`,
+TE or TM) and q = (2 pi d / lambda) sqrt(eps - sin^2 theta), the slab's internal multiple
+reflections sum to (P.2040-3, eqs. 43-44)
+
+    R = R' (1 - e^{-j2q}) / (1 - R'^2 e^{-j2q}),
+    T = (1 - R'^2) e^{-j(q - q0)} / (1 - R'^2 e^{-j2q}),   q0 = (2 pi d / lambda) cos theta.
+
+T is the field behind the slab over the field there without it: a ray traced straight
+through the slab keeps its free-space phase and takes T on top (Sionna RT's
+``itu_coefficients_single_layer_slab`` leaves out the e^{+j q0}, the free-space phase of
+the slab's own thickness). Its phase is the slab's excess electrical path,
+d (sqrt(eps' - sin^2 theta) - cos theta) for a weak loss (:func:`excess_path`), which a
+radar reads as the target behind standing that much farther. A PEC reflects as the half
+space and transmits nothing. Time convention exp(+j omega t), as in :mod:`rfsdf.materials`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from .materials import POLARIZATIONS, fresnel_of_cosine
+
+__all__ = ["slab_coefficients", "excess_path"]
+
+_SPEED_OF_LIGHT = 299_792_458.0  # [m/s]
+
+
+def slab_coefficients(cos_inc, eps, thickness_m, frequency_hz: float,
+                      polarization: str = "TE") -> tuple[torch.Tensor, torch.Tensor]:
+    """(R, T) complex128 of a slab (see the module docstring), broadcast over the inputs.
+
+    cos_inc : cos(theta_inc) in [0, 1], float or tensor. eps : complex relative permittivity
+    eps' - j eps'' (inf: PEC). thickness_m : d [m] >= 0. polarization : "TE", "TM" or "mean"
+    (the unpolarised amplitude sqrt((|TE|^2 + |TM|^2) / 2) with the TE phase, as
+    :func:`~rfsdf.materials.fresnel`).
+
+    Examples
+    --------
+    A lossless half-wave slab (d = lambda / (2 sqrt(eps))) is transparent at normal incidence:
+
+    >>> wavelength = _SPEED_OF_LIGHT / 79e9
+    >>> r, t = slab_coefficients(1.0, 4.0, wavelength / 4, 79e9)
+    >>> round(float(r.abs()), 12), round(float(t.abs()), 12)
+    (0.0, 1.0)
+    """
+    if polarization not in POLARIZATIONS:
+        raise ValueError(f"polarization must be one of {POLARIZATIONS}, got {polarization!r}")
+    if polarization == "mean":
+        (r_te, t_te), (r_tm, t_tm) = (slab_coefficients(cos_inc, eps, thickness_m, frequency_hz, p)
+                                      for p in ("TE", "TM"))
+        return tuple(torch.sqrt((te.abs() ** 2 + tm.abs() ** 2) / 2) * torch.sgn(te)
+                     for te, tm in ((r_te, r_tm), (t_te, t_tm)))
+    cos_t = torch.as_tensor(cos_inc, dtype=torch.float64)
+    eps = torch.as_tensor(eps, dtype=torch.complex128).to(cos_t.device)
+    d = torch.as_tensor(thickness_m, dtype=torch.float64, device=cos_t.device)
+    if not bool((d >= 0).all()):
+        raise ValueError("slab thickness must be >= 0 m")
+    k0 = 2 * math.pi * frequency_hz / _SPEED_OF_LIGHT
+    single = fresnel_of_cosine(cos_t, eps, polarization)
+    pec = torch.isinf(eps.real)
+    eps_safe = torch.where(pec, torch.ones_like(eps), eps)
+    q = k0 * d * torch.sqrt(eps_safe - 1 + cos_t.to(torch.complex128) ** 2)  # principal root: Im q <= 0, decaying
+    round_trip = torch.exp(-2j * q)
+    denominator = 1 - single**2 * round_trip
+    r = single * (1 - round_trip) / denominator
+    t = (1 - single**2) * torch.exp(-1j * (q - k0 * d * cos_t)) / denominator
+    return torch.where(pec, single, r), torch.where(pec, torch.zeros_like(t), t)
+
+
+def excess_path(cos_inc, eps_real, thickness_m) -> torch.Tensor:
+    """The slab's one-way excess electrical path d (sqrt(eps' - sin^2 theta) - cos theta) [m]
+    (float64): how much farther a ray's target stands for crossing it (the group delay of a
+    weakly lossy, non-dispersive slab, its internal reflections aside)."""
+    cos_t = torch.as_tensor(cos_inc, dtype=torch.float64)
+    return torch.as_tensor(thickness_m, dtype=torch.float64) * (torch.sqrt(eps_real - 1 + cos_t**2) - cos_t)
