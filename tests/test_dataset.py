@@ -56,3 +56,9 @@ def test_simulate_needs_a_scene_or_random_not_both(tmp_path, args):
     result = CliRunner().invoke(main, ["simulate", *args, "--out", str(tmp_path / "x")])
     assert result.exit_code == 2 and result.output.strip() == "error: give a SCENE_NAME or --random N (not both)"
     assert not (tmp_path / "x").exists()
+
+
+def test_a_random_dataset_is_simulated_opaque():
+    result = CliRunner().invoke(main, ["simulate", "--random", "2", "--transmission", "--out", "x"])
+    assert result.exit_code == 2
+    assert result.output.strip() == "error: --transmission: random datasets are simulated opaque; give a SCENE_NAME"

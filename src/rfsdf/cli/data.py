@@ -24,7 +24,7 @@ from .app import (
 
 
 def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: int = 150_000,
-              surface: str = "facets"):
+              surface: str = "facets", transmission: bool = False):
     from ..radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate
     from ..scene import load_scene
 
@@ -35,7 +35,7 @@ def _simulate(scene_name: str, radar_name: str, seed: int, device, max_samples: 
     click.echo(sc.summary())
     click.echo(rad.summary())
     measurements = simulate(sc, rad, seed=seed, device=device, max_samples=max_samples, surface=surface,
-                            progress=True)
+                            transmission=transmission, progress=True)
     click.echo(measurements.metadata["surface_sampling"])
     return sc, measurements
 
@@ -104,14 +104,20 @@ def _write_image(image, out_image: Path, out_png: Path, title: str):
 @click.option("--surface", type=click.Choice(["facets", "points"]), default="facets", show_default=True,
               help="How the surface is summed: flat facets of its zero set with their phase integrated (converged), "
                    "or points (a Monte Carlo quadrature, for comparison).")
+@click.option("--transmission", is_flag=True,
+              help="Lines of sight go on through dielectric objects (each a slab of the chord it cuts: ITU-R P.2040's "
+                   "T out and back, delayed by its excess path); metal still blocks. Default: opaque objects.")
 @device_option()
 @one_line_errors
 def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,
-                 workers: int, ray_address: str | None, max_samples: int, surface: str, device: str):
+                 workers: int, ray_address: str | None, max_samples: int, surface: str, transmission: bool,
+                 device: str):
     """Simulate radar measurements of a scene and write them to an HDF5 file, or (--random N)
     a dataset of N random scenes: OUT/scene-NNNNN.toml + .h5 and OUT/dataset.json."""
     if (scene_name is None) == (random_count is None):
         raise ValueError("give a SCENE_NAME or --random N (not both)")
+    if random_count is not None and transmission:
+        raise ValueError("--transmission: random datasets are simulated opaque; give a SCENE_NAME")
     if random_count is not None:
         from ..dataset import check_dataset, simulate_dataset
 
@@ -127,7 +133,8 @@ def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, 
     from ..radar import write_measurements
 
     refuse_overwriting_inputs(out, scene_name, radar_name)
-    _, measurements = _simulate(scene_name, radar_name, seed, device_named(device), max_samples, surface)
+    _, measurements = _simulate(scene_name, radar_name, seed, device_named(device), max_samples, surface,
+                                transmission)
     write_measurements(out, measurements)
     click.echo(f"wrote {out}")
 

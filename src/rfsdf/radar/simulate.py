@@ -10,10 +10,13 @@ coherent renderer calls the same function on samples of the neural surface.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import torch
 
 from ..materials import fresnel
+from ..slab import slab_coefficients
 from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
 from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
@@ -22,8 +25,10 @@ from .scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, po_spectrum, scatter,
 from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
+from .waveform import range_resolution_m
+from .transmission import line_of_sight, thickness_along
 
-__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH",
+__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "through_objects", "add_noise", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
 
 SIMULATED_GAIN = 1.0
@@ -47,16 +52,30 @@ def surface_reflectivity(
     scene: Scene, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor, object_index: torch.Tensor,
     tx_centre: torch.Tensor, rx_centre: torch.Tensor, frequency_hz: float, *,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True,
+    shadows: bool = True, thin_slab_m: float | None = None,
 ) -> torch.Tensor:
     """Complex reflectivity (Q,) complex64 of surface samples seen from one view's Tx/Rx phase
     centres [m]: :func:`~rfsdf.radar.scattering.scatter` with the Fresnel coefficient of each
-    sample's material at ``frequency_hz`` and the scene itself as the occluder."""
+    sample's material at ``frequency_hz`` and the scene itself as the occluder. With
+    ``thin_slab_m`` [m] a dielectric sample whose object is a slab along the lighting ray
+    (:func:`~rfsdf.radar.transmission.thickness_along`) with a round trip 2 d sqrt(eps')
+    under it (the range resolution: its back face's echo not apart from its front's)
+    reflects as that slab, internal reflections summed (:func:`~rfsdf.slab.slab_coefficients`)."""
     eps = torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in scene.objects],
                        dtype=torch.complex128, device=points.device)
     sample_eps = eps[object_index]
-    c = scatter(points.double(), normals.double(), area_m2.double(),
-                lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization),
+    reflection = lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization)  # noqa: E731
+    if thin_slab_m is not None:
+        dielectric = ~torch.isinf(sample_eps.real)
+        thickness = torch.zeros(len(points), dtype=torch.float64, device=points.device)
+        thickness[dielectric] = thickness_along(scene, points[dielectric], normals[dielectric],
+                                                object_index[dielectric], tx_centre, limit_m=thin_slab_m)
+        thin = dielectric & (thickness > 0) & (2 * thickness * sample_eps.real.clamp(min=1).sqrt() < thin_slab_m)
+        thickness = torch.where(thin, thickness, torch.zeros_like(thickness))
+        half_space = reflection
+        reflection = lambda cos_inc: torch.where(  # noqa: E731
+            thin, slab_coefficients(cos_inc, sample_eps, thickness, frequency_hz, polarization)[0], half_space(cos_inc))
+    c = scatter(points.double(), normals.double(), area_m2.double(), reflection,
                 tx_centre.double(), rx_centre.double(), 2 * np.pi * frequency_hz / SPEED_OF_LIGHT,
                 specular_exponent=specular_exponent, diffuse_weight=diffuse_weight,
                 occluder=scene.sdf if shadows else None)
@@ -64,13 +83,14 @@ def surface_reflectivity(
 
 
 def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acquisition, *,
-                        unshadowed: torch.Tensor | None = None, progress: bool = False, **scattering) -> torch.Tensor:
+                        sight: torch.Tensor | None = None, progress: bool = False, **scattering) -> torch.Tensor:
     """(V, Q) complex64: :func:`surface_reflectivity` of the samples in each frame, at the
     centre frequency, from that frame's Tx and Rx phase centres; ``scattering`` as there.
-    ``unshadowed`` (Q,) bool: shadows found once for all these frames (a scan's, from its
-    centre), so that no frame traces its own."""
+    ``sight`` (Q,) each sample's line of sight found once for all these frames (a scan's,
+    from its centre), so that no frame traces its own: bool (unshadowed) or complex (through
+    objects, :func:`through_objects`)."""
     acq, device = acquisition, samples.points.device
-    if unshadowed is not None:
+    if sight is not None:
         scattering = {**scattering, "shadows": False}
     tx, rx = acq.tx_m.mean(1).to(device), acq.rx_m.mean(1).to(device)
     c = torch.stack([
@@ -78,7 +98,38 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
                              tx[v], rx[v], acq.center_frequency_hz, **scattering)
         for v in progress_bar(range(acq.shape[0]), desc="scattering", enabled=progress)
     ])
-    return c if unshadowed is None else c * unshadowed.to(device)
+    return c if sight is None else c * sight.to(device=device, dtype=c.dtype)
+
+
+def through_objects(scene: Scene, samples: SurfaceSamples, centre_m: torch.Tensor, frequency_hz: float,
+                    polarization: str = "mean") -> tuple[torch.Tensor, torch.Tensor]:
+    """Each sample's two-way line of sight to ``centre_m`` (3,) [m] through the scene's
+    objects (:func:`~rfsdf.radar.transmission.line_of_sight`): (Q,) complex128, T^2 of the
+    slabs crossed at ``frequency_hz`` with their excess phase there taken out (0 for samples
+    facing away or behind metal), and (Q,) float64 the two-way excess path [m], which the
+    simulator puts back as a delay at every frequency (a slab's T is taken as flat over the
+    band, its delay is not)."""
+    points, normals = samples.points.double(), samples.normals.double()
+    facing = (((centre_m.to(points) - points) * normals).sum(1) > 0).nonzero().squeeze(1)
+    sight = line_of_sight(scene, points[facing], normals[facing], centre_m, frequency_hz, polarization=polarization)
+    k = 2 * np.pi * frequency_hz / SPEED_OF_LIGHT
+    factor = torch.zeros(len(points), dtype=torch.complex128, device=points.device)
+    factor[facing] = sight.factor**2 * torch.exp(2j * k * sight.excess_m)
+    excess = torch.zeros(len(points), dtype=torch.float64, device=points.device)
+    excess[facing] = 2 * sight.excess_m
+    return factor, excess
+
+
+def _delayed(weight, acquisition: Acquisition, excess_m: torch.Tensor, views: slice, points: slice) -> torch.Tensor:
+    """A chunk's per-frequency weight (v, K, q) (:meth:`SensingOperator.forward_weighted`):
+    ``weight``'s (None: 1) times exp(-j (k - k_c) x) for each point's excess path x [m]
+    (the centre frequency's phase is in its reflectivity)."""
+    k = 2 * np.pi * acquisition.frequencies_hz.to(excess_m.device, torch.float64) / SPEED_OF_LIGHT
+    delay = torch.exp(-1j * (k - k.mean())[:, None] * excess_m[None, points])  # (K, q)
+    if weight is None:
+        return delay[None].expand(len(acquisition.tx_m[views]), -1, -1)
+    facets = weight(views, points)
+    return facets * delay[None].to(facets.dtype)
 
 
 def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tuple[torch.Tensor, float]:
@@ -104,7 +155,8 @@ def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, stratified: bool = True, surface: str = "facets", device=None, progress: bool = False,
+    shadows: bool = True, stratified: bool = True, surface: str = "facets", transmission: bool = False,
+    device=None, progress: bool = False,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
@@ -116,7 +168,10 @@ def simulate(
     random error, study ``roughness``); else as flat facets over the surface some view sees,
     no coarser than the physics allows, or ValueError (:mod:`~rfsdf.radar.surface_plan`; its
     summary is the metadata's "surface_sampling"). Rough objects need samples at most half
-    their correlation length apart, else ValueError. Noise is added
+    their correlation length apart, else ValueError. With ``transmission`` a line of sight
+    goes on through dielectric objects instead of stopping at them (each crossing a slab of
+    the chord's thickness: its T out and back, the sample standing farther by its excess
+    path, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
@@ -128,38 +183,52 @@ def simulate(
     samples = samples.to(device or "cpu")
     scattering = {"specular_exponent": specular_exponent, "diffuse_weight": diffuse_weight,
                   "polarization": polarization, "shadows": shadows}
+    if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
+        scattering["thin_slab_m"] = range_resolution_m(float(np.ptp(acq.frequencies_hz.numpy())))
     points = scene.rough_points(samples)
 
-    def measure(part: Acquisition, unshadowed: torch.Tensor | None = None, show: bool = progress) -> torch.Tensor:
-        """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; a scan's summed over the
-        samples some frame of it sees (about half)."""
-        c = view_reflectivities(scene, samples, part, unshadowed=unshadowed, progress=show, **scattering)
-        seen = (c != 0).any(0) if unshadowed is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
+    def measure(part: Acquisition, sight: torch.Tensor | None = None, excess: torch.Tensor | None = None,
+                show: bool = progress) -> torch.Tensor:
+        """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; with ``sight`` (Q,)
+        (bool or complex: each sample's line of sight, found once for these frames) summed
+        over the samples some frame sees (a scan: about half), each delayed by ``excess``
+        (Q,), its two-way excess path [m]."""
+        c = view_reflectivities(scene, samples, part, sight=sight, progress=show, **scattering)
+        seen = (c != 0).any(0) if sight is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
         operator, c = SensingOperator(part), c[:, seen]
-        if samples.corners_m is None:
+        weight = None if samples.corners_m is None else facet_weight(part, samples.points[seen],
+                                                                      samples.corners_m[seen])
+        if excess is not None:
+            weight = partial(_delayed, weight, part, excess[seen].to(points.device))
+        if weight is None:
             return operator.forward(points[seen], c, progress=show).cpu()
-        weight = facet_weight(part, samples.points[seen], samples.corners_m[seen])
         return operator.forward_weighted(points[seen], c, weight, progress=show).cpu()
 
-    if acq.scans is None:
+    if acq.scans is None and not transmission:
         y = measure(acq)
     else:
-        # A scan's frames trace one set of shadows, from its centre: its frames see a
+        # A scan's frames trace one set of lines of sight, from its centre: its frames see a
         # hand-sized object within some 15 degrees of it (sar-77g), and a ray per sample and
-        # frame would cost thousands of traces a sample.
+        # frame would cost thousands of traces a sample. Through objects, each view traces its own.
         y = torch.zeros(acq.shape, dtype=torch.complex64)
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
-        centres = 0.5 * sum(acq.view_centres())  # (S, 3) each scan's phase centre
-        for view in progress_bar(range(acq.num_views), desc="scans", enabled=progress):
-            unshadowed = (unblocked(samples.points, samples.normals, centres[view].to(samples.points), scene.sdf)
-                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
+        centres = 0.5 * sum(acq.view_centres())  # (S, 3) each view's phase centre
+        for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
+            centre, excess = centres[view].to(samples.points), None
+            if transmission:
+                sight, excess = through_objects(scene, samples, centre, acq.center_frequency_hz, polarization)
+            else:
+                sight = (unblocked(samples.points, samples.normals, centre, scene.sdf)
+                         if shadows else torch.ones(len(samples.points), dtype=torch.bool))
             for part in acq.frames(view).split(chunk):
-                y[part] = measure(acq.view(part), unshadowed, show=False)
+                y[part] = measure(acq.view(part), sight, excess, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:
         y, noise_std = add_noise(y, radar.snr_db, torch.Generator().manual_seed(seed + 1))
     bounds = ",".join(f"{v:.9g}" for v in (*scene.lower_m, *scene.upper_m))
-    return Measurements(acq, y, noise_std, {"scene": scene.name, "radar": radar.name, "bounds_m": bounds,
-                                            "surface_samples": str(len(samples.points)),
-                                            "surface_sampling": plan.summary(len(samples.points))})
+    metadata = {"scene": scene.name, "radar": radar.name, "bounds_m": bounds, "surface_samples": str(len(samples.points)),
+                "surface_sampling": plan.summary(len(samples.points))}
+    if transmission:
+        metadata["lines_of_sight"] = "through dielectric objects (ITU-R P.2040 slabs), blocked by metal"
+    return Measurements(acq, y, noise_std, metadata)
