@@ -363,6 +363,11 @@ class Scene:
         upper = np.minimum(near.max(0).values.numpy() + pad, self.upper_m + pad)
         return lower, upper
 
+    def thinnest_m(self, obj: SceneObject) -> float:
+        """The thickness [m] of ``obj`` at its thinnest (a box's smallest edge, a shell's
+        wall; inf for an object outside the bounds)."""
+        return 2 * _half_thickness(obj.sdf, self._near_points(obj, _COARSE_RESOLUTION))
+
     def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
         """Marching cubes of an analytic object: ``_MESH_RESOLUTION`` cells along its longest
         edge, or, where its thinnest part is thinner than ``_CELLS_ACROSS`` such cells (a
@@ -372,7 +377,7 @@ class Scene:
         lower, upper = self._object_box(near)
         sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface
         longest = float((upper - lower).max())
-        thickness = 2 * _half_thickness(obj.sdf, near)
+        thickness = self.thinnest_m(obj)
         if thickness >= _CELLS_ACROSS * longest / _MESH_RESOLUTION:
             return extract_mesh(sdf64, lower, upper, _MESH_RESOLUTION)
         try:

@@ -219,13 +219,25 @@ class _Reader:
             sigma = self.number(props["conductivity"]) if "conductivity" in props else 0.0
             if eps < 1 or sigma < 0:
                 self.fail(element, f"relative_permittivity {eps:g} must be >= 1 and conductivity {sigma:g} >= 0")
-            name = key
-            self.custom.append({"name": name, "permittivity": eps, "conductivity_s_per_m": sigma})
         thickness = self.number(props["thickness"]) if "thickness" in props else SIONNA_DEFAULT_THICKNESS_M
         if not thickness > 0:
             self.fail(props["thickness"], "thickness must be positive [m]")
+        if kind != "itu-radio-material":
+            name = self.custom_name(key, thickness, eps, sigma)
         self.materials[key] = (name, thickness)
         return key
+
+    def custom_name(self, key: str, thickness: float, eps: float, sigma: float) -> str:
+        """The name of a custom material: its bsdf id less Sionna's ``mat-`` and the
+        ``-<thickness>mm`` rfsdf's writer appends (so rfsdf's own files read back their
+        names), registered once; the id itself where that name is taken by another material."""
+        name = re.sub(rf"-{re.escape(f'{thickness * 1e3:g}')}mm$", "", key.removeprefix("mat-"))
+        known = {m["name"]: m for m in self.custom}
+        if name in known and (known[name]["permittivity"], known[name]["conductivity_s_per_m"]) != (eps, sigma):
+            name = key
+        if name not in known or name == key:
+            self.custom.append({"name": name, "permittivity": eps, "conductivity_s_per_m": sigma})
+        return name
 
     def shape(self, element: ET.Element) -> None:
         kind = element.get("type")

@@ -6,7 +6,8 @@ longest edge, or a third of its thickness where it is thinner than 3 such cells)
 materials become ``itu-radio-material`` (the names are ITU-R P.2040's, as Sionna's), custom
 ones ``radio-material`` with their constant permittivity and conductivity. The thickness
 Sionna gives a material (its slab model) is the object's: a sheet's or shell's own, else
-the smallest edge of the object's bounding box (to 0.1 mm). Ids follow Sionna's scenes
+its thickness at its thinnest (a hollow box's wall, a torus's tube; at most the smallest
+edge of its bounding box; to 0.1 mm). Ids follow Sionna's scenes
 (``mesh-<object>``, ``mat-<material>-<thickness>mm``, one bsdf per material and thickness),
 since Sionna names objects and materials by them less the prefix and wants every name
 distinct.
@@ -67,10 +68,11 @@ def _property(parent: ET.Element, tag: str, name: str, value) -> None:
     ET.SubElement(parent, tag, name=name, value=str(value))
 
 
-def _thickness(spec_shape, mesh: trimesh.Trimesh) -> float:
+def _thickness(scene: Scene, obj, spec_shape, mesh: trimesh.Trimesh) -> float:
     if isinstance(spec_shape, MeshShapeSpec) and spec_shape.thickness_m is not None:
         return float(spec_shape.thickness_m)
-    return round(float(mesh.extents.min()), 4)  # to 0.1 mm: marching cubes leaves digits that mean nothing
+    # to 0.1 mm: marching cubes leaves digits that mean nothing
+    return round(min(float(mesh.extents.min()), scene.thinnest_m(obj)), 4)
 
 
 def export_scene(scene: Scene, folder: Path) -> Path:
@@ -86,7 +88,7 @@ def export_scene(scene: Scene, folder: Path) -> Path:
     materials: dict[tuple[str, float], str] = {}  # (material, thickness) -> bsdf id, shared as in Sionna's scenes
     for obj, spec, mesh in zip(scene.objects, scene.spec.objects, meshes):
         ident = _identifier(obj.name, taken)
-        material, thickness = obj.material, _thickness(spec.shape, mesh)
+        material, thickness = obj.material, _thickness(scene, obj, spec.shape, mesh)
         bsdf_id = materials.get((material.name, thickness))
         if bsdf_id is None:
             bsdf_id = f"mat-{re.sub(r'[^A-Za-z0-9_]', '_', material.name)}-{thickness * 1e3:g}mm"
