@@ -128,3 +128,11 @@ def test_malformed_toml_and_bad_bounds(tmp_path):
                     '[[objects]]\nname="a"\nmaterial="metal"\nshape={type="sphere", radius_m=0.1}\n')
     with pytest.raises(RfsdfError, match="bounds: lower_m"):
         load_scene(path)
+
+
+def test_an_object_is_as_thick_as_its_thinnest_part():
+    """The boxed preset's cardboard walls are 3 mm; its ball 4 cm across."""
+    boxed = load_scene("boxed")
+    by_name = {o.name: o for o in boxed.objects}
+    assert boxed.thinnest_m(by_name["box"]) == pytest.approx(0.003, rel=0.05)
+    assert boxed.thinnest_m(by_name["metal_ball"]) == pytest.approx(0.04, rel=0.05)
