@@ -183,14 +183,13 @@ def _resolution_text(acquisition, centre_m: np.ndarray) -> str:
     """Range resolution c/2B and cross-range resolution lambda R / (2 D) of the first view,
     R its distance to ``centre_m`` (3,) [m], D the largest extent of its virtual array."""
     f = acquisition.frequencies_hz.numpy()
-    bandwidth = len(f) * np.ptp(f) / max(len(f) - 1, 1)
     frames = acquisition.frames(0)  # one frame, or a scan's
     tx, rx = acquisition.tx_m[frames].numpy(), acquisition.rx_m[frames].numpy()
     virtual = 0.5 * (tx[:, :, None] + rx[:, None]).reshape(-1, 3)
     aperture = float(np.ptp(virtual, axis=0).max())
     distance = float(np.linalg.norm(virtual.mean(0) - centre_m))
     wavelength = SPEED_OF_LIGHT / float(f.mean())
-    return (f"range resolution c/2B = {range_resolution_m(bandwidth) * 1e3:.1f} mm; cross-range resolution "
+    return (f"range resolution c/2B = {range_resolution_m(acquisition.bandwidth_hz) * 1e3:.1f} mm; cross-range resolution "
             f"lambda R / 2D = {wavelength * distance / (2 * aperture) * 1e3:.1f} mm at R = {distance:.2f} m "
             f"(aperture D = {aperture * 100:.1f} cm, lambda = {wavelength * 1e3:.2f} mm); "
             f"{acquisition.num_views} views")

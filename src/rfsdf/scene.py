@@ -327,6 +327,12 @@ class Scene:
         """The material of the nearest object at each point, a list of N Materials."""
         return [self.objects[i].material for i in self.object_index(points).tolist()]
 
+    def permittivities(self, frequency_hz: float, device=None) -> torch.Tensor:
+        """(N,) complex128: each object's relative permittivity at ``frequency_hz`` (inf for
+        metal), in the objects' order (so ``[object_index(points)]`` gives each point's)."""
+        return torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in self.objects],
+                            dtype=torch.complex128, device=device)
+
     def _object_values(self, points):
         points = geo.as_points(points)
         return torch.stack([o.sdf(points) for o in self.objects], dim=0)

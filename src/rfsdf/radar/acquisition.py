@@ -17,9 +17,20 @@ from dataclasses import dataclass, field, replace
 
 import torch
 
-__all__ = ["Acquisition", "Measurements", "SPEED_OF_LIGHT"]
+__all__ = ["Acquisition", "Measurements", "SPEED_OF_LIGHT", "swept_bandwidth_hz"]
 
 SPEED_OF_LIGHT = 299_792_458.0  # [m/s]
+
+
+def swept_bandwidth_hz(frequencies_hz) -> float:
+    """K * delta_f [Hz] of K uniformly spaced frequencies (K,) (a NumPy array or a tensor):
+    the span that sets the range resolution c / 2B, one step wider than max - min.
+
+    >>> swept_bandwidth_hz(torch.tensor([77e9, 78e9, 79e9, 80e9], dtype=torch.float64)) / 1e9
+    4.0
+    """
+    f = frequencies_hz
+    return float(f.max() - f.min()) * len(f) / max(len(f) - 1, 1)
 
 
 @dataclass(frozen=True)
@@ -105,9 +116,8 @@ class Acquisition:
 
     @property
     def bandwidth_hz(self) -> float:
-        """K * delta_f for uniformly spaced frequencies (the span that sets c / 2B)."""
-        f = self.frequencies_hz
-        return float(f.max() - f.min()) * len(f) / max(len(f) - 1, 1)
+        """K * delta_f [Hz] (:func:`swept_bandwidth_hz`)."""
+        return swept_bandwidth_hz(self.frequencies_hz)
 
     @property
     def center_frequency_hz(self) -> float:

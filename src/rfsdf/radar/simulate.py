@@ -26,7 +26,7 @@ from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
 from .waveform import range_resolution_m
-from .transmission import line_of_sight, thickness_along
+from .transmission import line_of_sight, thin_slabs
 
 __all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "through_objects", "add_noise", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
@@ -52,29 +52,21 @@ def surface_reflectivity(
     scene: Scene, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor, object_index: torch.Tensor,
     tx_centre: torch.Tensor, rx_centre: torch.Tensor, frequency_hz: float, *,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
-    shadows: bool = True, thin_slab_m: float | None = None,
+    shadows: bool = True, slab_m: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Complex reflectivity (Q,) complex64 of surface samples seen from one view's Tx/Rx phase
     centres [m]: :func:`~rfsdf.radar.scattering.scatter` with the Fresnel coefficient of each
-    sample's material at ``frequency_hz`` and the scene itself as the occluder. With
-    ``thin_slab_m`` [m] a dielectric sample whose object is a slab along the lighting ray
-    (:func:`~rfsdf.radar.transmission.thickness_along`) with a round trip 2 d sqrt(eps')
-    under it (the range resolution: its back face's echo not apart from its front's)
-    reflects as that slab, internal reflections summed (:func:`~rfsdf.slab.slab_coefficients`)."""
-    eps = torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in scene.objects],
-                       dtype=torch.complex128, device=points.device)
-    sample_eps = eps[object_index]
+    sample's material at ``frequency_hz`` and the scene itself as the occluder. ``slab_m``
+    (Q,) [m] each sample's thickness as a thin slab along its lighting ray, 0 for a half
+    space (:func:`~rfsdf.radar.transmission.thin_slabs`): a sample with one reflects as that
+    slab, internal reflections summed (:func:`~rfsdf.slab.slab_coefficients`)."""
+    sample_eps = scene.permittivities(frequency_hz, points.device)[object_index]
     reflection = lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization)  # noqa: E731
-    if thin_slab_m is not None:
-        dielectric = ~torch.isinf(sample_eps.real)
-        thickness = torch.zeros(len(points), dtype=torch.float64, device=points.device)
-        thickness[dielectric] = thickness_along(scene, points[dielectric], normals[dielectric],
-                                                object_index[dielectric], tx_centre, limit_m=thin_slab_m)
-        thin = dielectric & (thickness > 0) & (2 * thickness * sample_eps.real.clamp(min=1).sqrt() < thin_slab_m)
-        thickness = torch.where(thin, thickness, torch.zeros_like(thickness))
-        half_space = reflection
+    if slab_m is not None:
+        slab_m, half_space = slab_m.to(points.device), reflection
         reflection = lambda cos_inc: torch.where(  # noqa: E731
-            thin, slab_coefficients(cos_inc, sample_eps, thickness, frequency_hz, polarization)[0], half_space(cos_inc))
+            slab_m > 0, slab_coefficients(cos_inc, sample_eps, slab_m, frequency_hz, polarization)[0],
+            half_space(cos_inc))
     c = scatter(points.double(), normals.double(), area_m2.double(), reflection,
                 tx_centre.double(), rx_centre.double(), 2 * np.pi * frequency_hz / SPEED_OF_LIGHT,
                 specular_exponent=specular_exponent, diffuse_weight=diffuse_weight,
@@ -183,17 +175,15 @@ def simulate(
     samples = samples.to(device or "cpu")
     scattering = {"specular_exponent": specular_exponent, "diffuse_weight": diffuse_weight,
                   "polarization": polarization, "shadows": shadows}
-    if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
-        scattering["thin_slab_m"] = range_resolution_m(float(np.ptp(acq.frequencies_hz.numpy())))
     points = scene.rough_points(samples)
 
     def measure(part: Acquisition, sight: torch.Tensor | None = None, excess: torch.Tensor | None = None,
-                show: bool = progress) -> torch.Tensor:
+                slab: torch.Tensor | None = None, show: bool = progress) -> torch.Tensor:
         """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; with ``sight`` (Q,)
         (bool or complex: each sample's line of sight, found once for these frames) summed
         over the samples some frame sees (a scan: about half), each delayed by ``excess``
-        (Q,), its two-way excess path [m]."""
-        c = view_reflectivities(scene, samples, part, sight=sight, progress=show, **scattering)
+        (Q,), its two-way excess path [m], and reflecting as a thin slab of ``slab`` (Q,) [m]."""
+        c = view_reflectivities(scene, samples, part, sight=sight, progress=show, slab_m=slab, **scattering)
         seen = (c != 0).any(0) if sight is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
         operator, c = SensingOperator(part), c[:, seen]
         weight = None if samples.corners_m is None else facet_weight(part, samples.points[seen],
@@ -214,14 +204,16 @@ def simulate(
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
         centres = 0.5 * sum(acq.view_centres())  # (S, 3) each view's phase centre
         for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
-            centre, excess = centres[view].to(samples.points), None
-            if transmission:
+            centre, excess, slab = centres[view].to(samples.points), None, None
+            if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
                 sight, excess = through_objects(scene, samples, centre, acq.center_frequency_hz, polarization)
+                slab = thin_slabs(scene, samples.points, samples.normals, samples.object_index, centre,
+                                  acq.center_frequency_hz, range_resolution_m(acq.bandwidth_hz))
             else:
                 sight = (unblocked(samples.points, samples.normals, centre, scene.sdf)
                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
             for part in acq.frames(view).split(chunk):
-                y[part] = measure(acq.view(part), sight, excess, show=False)
+                y[part] = measure(acq.view(part), sight, excess, slab, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:

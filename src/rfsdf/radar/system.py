@@ -19,7 +19,7 @@ from ..config import Name, StrictModel, preset_names, read_toml, resolve_preset,
 from ..errors import RfsdfError
 from ..limits import require_memory
 from . import arrays, waveform
-from .acquisition import SPEED_OF_LIGHT, Acquisition
+from .acquisition import SPEED_OF_LIGHT, Acquisition, swept_bandwidth_hz
 from .boards import BOARDS, board_layout
 from .views import turntable_views
 
@@ -232,7 +232,7 @@ class Radar:
         return (f"radar {self.name!r}: {len(self.tx_m)} Tx x {len(self.rx_m)} Rx, {len(f)} frequencies "
                 f"{f.min() / 1e9:.2f}-{f.max() / 1e9:.2f} GHz, {self.num_views} views, "
                 f"virtual aperture {self.aperture_m * 100:.1f} cm, range resolution "
-                f"{waveform.range_resolution_m(len(f) * np.ptp(f) / max(len(f) - 1, 1)) * 100:.2f} cm"
+                f"{waveform.range_resolution_m(swept_bandwidth_hz(f)) * 100:.2f} cm"
                 + ("" if self.scans is None else f", each view a scan of {len(self.rotations) // self.num_views} frames"))
 
 

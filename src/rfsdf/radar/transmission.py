@@ -20,7 +20,7 @@ from ..geometry import sphere_trace
 from ..scene import Scene
 from ..slab import excess_path, slab_coefficients
 
-__all__ = ["LineOfSight", "line_of_sight", "thickness_along"]
+__all__ = ["LineOfSight", "line_of_sight", "thickness_along", "thin_slabs"]
 
 _TRACE_EPS_M = 1e-7  # hit tolerance of the rays [m]: a slab's phase needs its thickness to a micrometre
 _STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
@@ -53,8 +53,7 @@ def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, cen
         factor = torch.ones(q, dtype=torch.complex128, device=origins.device)
         excess = torch.zeros(q, dtype=torch.float64, device=origins.device)
         crossings = torch.zeros(q, dtype=torch.long, device=origins.device)
-        eps = torch.tensor([complex(o.material.permittivity(frequency_hz)) for o in scene.objects],
-                           dtype=torch.complex128, device=origins.device)
+        eps = scene.permittivities(frequency_hz, origins.device)
         active = torch.arange(q, device=origins.device)
         for _ in range(max_crossings):
             entry = sphere_trace(scene.sdf, origins[active], direction[active], eps=_TRACE_EPS_M, max_steps=256,
@@ -105,6 +104,21 @@ def thickness_along(scene: Scene, points: torch.Tensor, normals: torch.Tensor, o
         thickness[lit] = torch.where(torch.isinf(chord), chord,  # way out not found: no slab
                                      (chord + _STEP_IN_M / cos_inc[lit]).clamp(max=limit_m) * cos_inc[lit])
         return thickness
+
+
+def thin_slabs(scene: Scene, points: torch.Tensor, normals: torch.Tensor, object_index: torch.Tensor,
+               source_m: torch.Tensor, frequency_hz: float, resolution_m: float) -> torch.Tensor:
+    """(Q,) float64 [m]: each dielectric sample's :func:`thickness_along` the ray from
+    ``source_m`` (3,) [m] where its round trip 2 d sqrt(eps') at ``frequency_hz`` is under
+    ``resolution_m`` (the range resolution: the back face's echo not apart from the
+    front's, so the face reflects as the slab); 0 elsewhere (a half space)."""
+    eps_real = scene.permittivities(frequency_hz, points.device)[object_index].real
+    dielectric = ~torch.isinf(eps_real)
+    thickness = torch.zeros(len(points), dtype=torch.float64, device=points.device)
+    thickness[dielectric] = thickness_along(scene, points[dielectric], normals[dielectric], object_index[dielectric],
+                                            source_m, limit_m=resolution_m)
+    thin = dielectric & (thickness > 0) & (2 * thickness * eps_real.clamp(min=1).sqrt() < resolution_m)
+    return torch.where(thin, thickness, torch.zeros_like(thickness))
 
 
 def _chords(scene: Scene, which: torch.Tensor, starts: torch.Tensor, direction: torch.Tensor,

@@ -31,6 +31,7 @@ from ..geometry import Grid
 from ..mesh import extract_mesh
 from ..metrics import compare_meshes
 from ..radar import matched_filter
+from ..radar.acquisition import swept_bandwidth_hz
 from ..radar.imaging import half_power_width, point_spread
 from ..radar.waveform import cross_range_resolution_m, range_resolution_m
 from ..recon import Problem, Trainer
@@ -118,9 +119,7 @@ def _point(setting: dict, settings: Settings) -> Point:
         trainer = Trainer(Problem(data, GRID), config, folder)
         start = chamfer(trainer.field)
         fit = chamfer(trainer.fit().field)
-    frequencies = radar.frequencies_hz
-    bandwidth = float(np.ptp(frequencies)) * len(frequencies) / max(len(frequencies) - 1, 1)
-    range_resolution = range_resolution_m(bandwidth)
+    range_resolution = range_resolution_m(swept_bandwidth_hz(radar.frequencies_hz))
     cross_resolution = cross_range_resolution_m(radar.acquisition().wavelength_m, 0.3, radar.aperture_m)
     range_psf, cross_psf = _psf_widths(radar, 2 * max(range_resolution, cross_resolution))
     return Point(**setting, range_psf_mm=range_psf * 1e3, cross_psf_mm=cross_psf * 1e3,
