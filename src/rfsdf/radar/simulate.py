@@ -26,9 +26,9 @@ from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
 from .waveform import range_resolution_m
-from .transmission import line_of_sight, thin_slabs
+from .transmission import excess_delay, thin_slabs, through_objects
 
-__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "through_objects", "add_noise", "SAMPLES_PER_WAVELENGTH",
+__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
 
 SIMULATED_GAIN = 1.0
@@ -80,7 +80,7 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     centre frequency, from that frame's Tx and Rx phase centres; ``scattering`` as there.
     ``sight`` (Q,) each sample's line of sight found once for all these frames (a scan's,
     from its centre), so that no frame traces its own: bool (unshadowed) or complex (through
-    objects, :func:`through_objects`)."""
+    objects, :func:`~rfsdf.radar.transmission.through_objects`)."""
     acq, device = acquisition, samples.points.device
     if sight is not None:
         scattering = {**scattering, "shadows": False}
@@ -93,31 +93,10 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     return c if sight is None else c * sight.to(device=device, dtype=c.dtype)
 
 
-def through_objects(scene: Scene, samples: SurfaceSamples, centre_m: torch.Tensor, frequency_hz: float,
-                    polarization: str = "mean") -> tuple[torch.Tensor, torch.Tensor]:
-    """Each sample's two-way line of sight to ``centre_m`` (3,) [m] through the scene's
-    objects (:func:`~rfsdf.radar.transmission.line_of_sight`): (Q,) complex128, T^2 of the
-    slabs crossed at ``frequency_hz`` with their excess phase there taken out (0 for samples
-    facing away or behind metal), and (Q,) float64 the two-way excess path [m], which the
-    simulator puts back as a delay at every frequency (a slab's T is taken as flat over the
-    band, its delay is not)."""
-    points, normals = samples.points.double(), samples.normals.double()
-    facing = (((centre_m.to(points) - points) * normals).sum(1) > 0).nonzero().squeeze(1)
-    sight = line_of_sight(scene, points[facing], normals[facing], centre_m, frequency_hz, polarization=polarization)
-    k = 2 * np.pi * frequency_hz / SPEED_OF_LIGHT
-    factor = torch.zeros(len(points), dtype=torch.complex128, device=points.device)
-    factor[facing] = sight.factor**2 * torch.exp(2j * k * sight.excess_m)
-    excess = torch.zeros(len(points), dtype=torch.float64, device=points.device)
-    excess[facing] = 2 * sight.excess_m
-    return factor, excess
-
-
 def _delayed(weight, acquisition: Acquisition, excess_m: torch.Tensor, views: slice, points: slice) -> torch.Tensor:
     """A chunk's per-frequency weight (v, K, q) (:meth:`SensingOperator.forward_weighted`):
-    ``weight``'s (None: 1) times exp(-j (k - k_c) x) for each point's excess path x [m]
-    (the centre frequency's phase is in its reflectivity)."""
-    k = 2 * np.pi * acquisition.frequencies_hz.to(excess_m.device, torch.float64) / SPEED_OF_LIGHT
-    delay = torch.exp(-1j * (k - k.mean())[:, None] * excess_m[None, points])  # (K, q)
+    ``weight``'s (None: 1) times each point's excess path's delay (:func:`excess_delay`)."""
+    delay = excess_delay(acquisition.frequencies_hz, acquisition.center_frequency_hz, excess_m[points])  # (K, q)
     if weight is None:
         return delay[None].expand(len(acquisition.tx_m[views]), -1, -1)
     facets = weight(views, points)
@@ -206,7 +185,8 @@ def simulate(
         for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
             centre, excess, slab = centres[view].to(samples.points), None, None
             if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
-                sight, excess = through_objects(scene, samples, centre, acq.center_frequency_hz, polarization)
+                sight, excess = through_objects(scene, samples.points, samples.normals, centre,
+                                                acq.center_frequency_hz, polarization)
                 slab = thin_slabs(scene, samples.points, samples.normals, samples.object_index, centre,
                                   acq.center_frequency_hz, range_resolution_m(acq.bandwidth_hz))
             else:

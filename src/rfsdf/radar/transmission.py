@@ -14,13 +14,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from ..geometry import sphere_trace
 from ..scene import Scene
 from ..slab import excess_path, slab_coefficients
+from .acquisition import SPEED_OF_LIGHT
 
-__all__ = ["LineOfSight", "line_of_sight", "thickness_along", "thin_slabs"]
+__all__ = ["LineOfSight", "line_of_sight", "through_objects", "excess_delay", "thickness_along", "thin_slabs"]
 
 _TRACE_EPS_M = 1e-7  # hit tolerance of the rays [m]: a slab's phase needs its thickness to a micrometre
 _STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
@@ -84,6 +86,33 @@ def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, cen
         else:
             factor[active] = 0  # still crossing faces: as good as blocked
         return LineOfSight(factor, excess, crossings)
+
+
+def through_objects(scene: Scene, points: torch.Tensor, normals: torch.Tensor, centre_m: torch.Tensor,
+                    frequency_hz: float, polarization: str = "mean") -> tuple[torch.Tensor, torch.Tensor]:
+    """Each surface sample's (Q, 3) [m], normals (Q, 3), two-way line of sight to
+    ``centre_m`` (3,) [m] through the scene's objects (:func:`line_of_sight`): (Q,)
+    complex128, T^2 of the slabs crossed at ``frequency_hz`` with their excess phase there
+    taken out (0 for samples facing away or behind metal), and (Q,) float64 the two-way
+    excess path [m], which goes back in as a delay at every frequency (:func:`excess_delay`;
+    a slab's T is taken as flat over the band, its delay is not)."""
+    points, normals = points.double(), normals.double()
+    facing = (((centre_m.to(points) - points) * normals).sum(1) > 0).nonzero().squeeze(1)
+    sight = line_of_sight(scene, points[facing], normals[facing], centre_m, frequency_hz, polarization=polarization)
+    k = 2 * np.pi * frequency_hz / SPEED_OF_LIGHT
+    factor = torch.zeros(len(points), dtype=torch.complex128, device=points.device)
+    factor[facing] = sight.factor**2 * torch.exp(2j * k * sight.excess_m)
+    excess = torch.zeros(len(points), dtype=torch.float64, device=points.device)
+    excess[facing] = 2 * sight.excess_m
+    return factor, excess
+
+
+def excess_delay(frequencies_hz: torch.Tensor, centre_hz: float, excess_m: torch.Tensor) -> torch.Tensor:
+    """(K, Q) complex128: exp(-j (k - k_c) x), the delay of each sample's two-way excess path
+    x (Q,) [m] at each frequency (K,) [Hz] over the phase at the centre frequency, which
+    :func:`through_objects`'s factor carries."""
+    k = (2 * np.pi / SPEED_OF_LIGHT) * (frequencies_hz.to(excess_m.device, torch.float64) - centre_hz)
+    return torch.exp(-1j * k[:, None] * excess_m.double()[None])
 
 
 def thickness_along(scene: Scene, points: torch.Tensor, normals: torch.Tensor, object_index: torch.Tensor,

@@ -48,7 +48,9 @@ from ..radar.facets import facet_phase_weights
 from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, po_spectrum, scatter
 from ..radar.surface_plan import SURFACES
+from ..radar.transmission import excess_delay, through_objects
 from ..registry import Registry
+from ..scene import Scene
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
 from .surface_mesh import SurfaceMesh, mesh_facets, surface_mesh
 
@@ -77,13 +79,19 @@ class CoherentRenderer:
     bands : also image each of this many equal sub-bands of the frequencies on its own
     (``band_observed``, and ``__call__(bands=True)``), for a loss that compares sub-band
     images (``recon/losses.py``, "split"); 1: the full band only.
+    through : a known scene the fitted surface is seen through (a box the objects stand in,
+    whose own return the caller took out of the data): each surface sample's return is
+    weighted by its two-way line of sight through that scene's objects from each view's
+    phase centre (T^2 of the slabs crossed, and their excess path as a delay at every
+    frequency; :func:`~rfsdf.radar.transmission.through_objects`), found at each refresh
+    like the shadows; None: nothing in the way but the fitted surface itself.
     """
 
     def __init__(self, measurements: Measurements, grid: Grid, *, element_step: int = 1, frequency_step: int = 1,
                  surface: str = "facets", spacing_m: float | None = None,
                  specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT,
                  shadows: bool = True, device="cpu", dtype: torch.dtype = torch.float32, smoothing_m: float = 0.0,
-                 bands: int = 1, progress: bool = False):
+                 bands: int = 1, through: Scene | None = None, progress: bool = False):
         if surface not in SURFACES:
             raise ValueError(f"unknown surface {surface!r}; known: {', '.join(SURFACES)}")
         self.surface = surface
@@ -132,9 +140,15 @@ class CoherentRenderer:
         self.centre_frequency_hz = acq.center_frequency_hz
         self.wavenumber_rad_m = acq.wavenumber_rad_m
         self.po_spectrum = po_spectrum(acq.frequencies_hz).to(self.device)  # (K,), the data's last axis
-        self.wavenumbers_rad_m = (2 * np.pi / SPEED_OF_LIGHT) * acq.frequencies_hz.double().to(self.device)  # (K,)
+        self.frequencies_hz = acq.frequencies_hz.double().to(self.device)  # (K,)
+        self.wavenumbers_rad_m = (2 * np.pi / SPEED_OF_LIGHT) * self.frequencies_hz  # (K,)
+        self.through = through
         self.candidates: SurfaceCandidates | SurfaceMesh | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
+        # (V, Q) complex128 and float64 [m]: each candidate's two-way line of sight through
+        # ``through`` and its excess path, per view (None without one)
+        self.sight: torch.Tensor | None = None
+        self.excess_m: torch.Tensor | None = None
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
 
     @property
@@ -178,6 +192,12 @@ class CoherentRenderer:
                      shadow_offset_m=self.voxel_m)
             for v in range(self.num_views)
         ])
+        if self.through is not None:
+            centres = 0.5 * (self.tx_centres + self.rx_centres)
+            self.sight, self.excess_m = (torch.stack(parts) for parts in zip(*(
+                through_objects(self.through, anchors, normals, centre, self.centre_frequency_hz)
+                for centre in centres)))
+            self.lit = self.lit & (self.sight != 0)
 
     def surface_state(self) -> dict | None:
         """The surface as a checkpoint keeps it (tensors and numbers), with its masks; None
@@ -186,7 +206,7 @@ class CoherentRenderer:
         if cand is None:
             return None
         kept = cand.state() if isinstance(cand, SurfaceMesh) else dataclasses.asdict(cand)
-        return {"kind": self.surface, **kept, "lit": self.lit}
+        return {"kind": self.surface, **kept, "lit": self.lit, "sight": self.sight, "excess_m": self.excess_m}
 
     def load_surface_state(self, state: dict | None) -> None:
         """The surface and masks :meth:`surface_state` kept (None: none yet)."""
@@ -194,22 +214,29 @@ class CoherentRenderer:
             return
         state = dict(state)
         kind, self.lit = state.pop("kind"), state.pop("lit")
+        self.sight, self.excess_m = state.pop("sight", None), state.pop("excess_m", None)
         if kind != self.surface:
             raise ValueError(f"the checkpoint's surface is {kind}, this renderer's {self.surface}")
         self.candidates = SurfaceMesh.from_state(state) if kind == "facets" else SurfaceCandidates(**state)
         self._features = None
 
     def predict_data(self, view: int, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor,
-                     reflection, corners_m: torch.Tensor | None = None) -> torch.Tensor:
+                     reflection, corners_m: torch.Tensor | None = None, sight: torch.Tensor | None = None,
+                     excess_m: torch.Tensor | None = None) -> torch.Tensor:
         """y_v = A_v c_v (F, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
         c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there), and for
         facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
-        the phase integral across each at each frequency. The simulator's data, for the
-        simulator's samples and their Fresnel reflection."""
+        the phase integral across each at each frequency; seen through objects, times each
+        sample's ``sight`` (Q,) and delayed by its ``excess_m`` (Q,) [m] (``through``). The
+        simulator's data, for the simulator's samples and their Fresnel reflection."""
         tx, rx = self.tx_centres[view], self.rx_centres[view]
         c = scatter(points, normals, area_m2, reflection, tx, rx, self.wavenumber_rad_m, **self.lobe)
+        if sight is not None:
+            c = c * sight.to(c.dtype)
         if corners_m is not None:
             c = c[None] * facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)  # (K, Q)
+        if excess_m is not None:
+            c = c * excess_delay(self.frequencies_hz, self.centre_frequency_hz, excess_m).to(c.dtype)  # (K, Q)
         operator = self.operators[view]
         c = c[None].expand(operator.acq.shape[0], *c.shape)  # the same c in each of the view's frames
         return operator.forward(points, c) * self.po_spectrum.to(c.dtype)
@@ -280,8 +307,9 @@ class CoherentRenderer:
                 images.append(torch.zeros(shape, dtype=torch.promote_types(points.dtype, torch.complex64),
                                           device=self.device))
                 continue
+            through = {} if self.sight is None else {"sight": self.sight[v, idx], "excess_m": self.excess_m[v, idx]}
             y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
-                                  None if corners is None else corners[idx])
+                                  None if corners is None else corners[idx], **through)
             images.append(self._band_images(v, y, targets, voxel_index) if bands
                           else self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
         return torch.stack(images)

@@ -32,6 +32,7 @@ from ..radar import Measurements, matched_filter
 from ..radar.clean import CleanResult, clean_image
 from ..radar.range_peaks import range_peaks
 from ..radar.specular import specular_normals
+from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
 from .losses import DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, uses_phase
@@ -57,7 +58,9 @@ class Problem:
     indices into the config's materials (-1 unknown), for a cross-entropy term.
     ``known_materials``: the same kind of function for surfaces whose material is known
     (a calibration reference, ``recon.calibration``): they are rendered with it whatever
-    the head says, so with the gain fitted they set its scale."""
+    the head says, so with the gain fitted they set its scale. ``through``: a known scene
+    the surface is seen through (a box whose own return is out of the data already), in the
+    renderer's lines of sight (``CoherentRenderer``'s ``through``)."""
 
     measurements: Measurements
     grid: Grid
@@ -66,13 +69,17 @@ class Problem:
     gain: float | None = None
     material_labels: Callable[[torch.Tensor], torch.Tensor] | None = None
     known_materials: Callable[[torch.Tensor], torch.Tensor] | None = None
+    through: Scene | None = None
 
     def digest(self) -> str:
-        """SHA-256 of the samples, the acquisition geometry and the grid (hex, 16 digits)."""
+        """SHA-256 of the samples, the acquisition geometry, the grid and the scene the surface
+        is seen ``through`` (hex, 16 digits)."""
         acq, h = self.measurements.acquisition, hashlib.sha256()
         for tensor in (self.measurements.data, acq.tx_m, acq.rx_m, acq.frequencies_hz):
             h.update(tensor.detach().cpu().contiguous().numpy().tobytes())
         h.update(repr((self.grid.lower_m, self.grid.upper_m, self.grid.shape)).encode())
+        if self.through is not None:
+            h.update(self.through.spec.model_dump_json().encode())
         return h.hexdigest()[:16]
 
 
@@ -161,7 +168,8 @@ class Trainer:
             surface=rc.surface,
             spacing_m=rc.spacing_m,
             shadows=rc.shadows, device=self.device, smoothing_m=rc.surface_smoothing_m,
-            bands=max(bands_of(DATA_LOSSES.get(name)) for name in config.loss.names()), progress=progress)
+            bands=max(bands_of(DATA_LOSSES.get(name)) for name in config.loss.names()), through=problem.through,
+            progress=progress)
         self.observed = self.renderer.observed.abs()  # (V, N) amplitude, peak 1
         self.probabilities = data_voxel_probabilities(self.observed, config.sampling.data_focus)
         self.step = 0
