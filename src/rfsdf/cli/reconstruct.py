@@ -37,6 +37,13 @@ from .app import (
 @click.option("--scene", "scene_name", default=None,
               help="Scene file or preset that places the calibration reference (only that object is used); with "
                    "--model primitive, the true scene, to report each free parameter's truth.")
+@click.option("--through", "through_name", default=None,
+              help="With --model neural: a scene file or preset of what stands, known, between the radar and the "
+                   "objects (the box they are packed in): the fit sees the objects through its dielectrics, T^2 and "
+                   "the slabs' delay on every line of sight. Its own return must be out of DATA (--background).")
+@click.option("--background", "background_path", type=click.Path(path_type=Path), default=None,
+              help="Measurements of the scene without the objects (the empty box, captured or simulated with the "
+                   "same acquisition), subtracted from DATA before anything else.")
 @click.option("--model", "model_kind", type=click.Choice(["neural", "primitive", "hybrid"]), default="neural",
               show_default=True,
               help="neural: the GeRaF fit (with --fit-to profiles, the room-scale network from a start model); "
@@ -63,7 +70,8 @@ from .app import (
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
                     model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
-                    free_materials: bool, fit_to: str, device: str | None, gain_path: Path | None):
+                    free_materials: bool, fit_to: str, device: str | None, gain_path: Path | None,
+                    through_name: str | None, background_path: Path | None):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
     fitted-scene.toml, mesh.ply; or (--model neural --fit-to profiles) a room's neural
@@ -71,10 +79,12 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
     No scene is needed: the box comes from --image, --bounds, or the bounds stored in DATA.
     A calibration reference (--reference, or calibration.reference in --config) needs the
-    --scene that places it; its result goes to calibration.json."""
+    --scene that places it; its result goes to calibration.json. Objects in a known box:
+    --background (the empty box's measurements) and --through (the box's scene)."""
+    seen_through = (("--through", through_name), ("--background", background_path))
     if model_kind != "neural":
         _refuse_options(f"--model {model_kind}", ("--image", image_path), ("--config", config_path),
-                        ("--resume", resume), ("--reference", reference), ("--gain", gain_path))
+                        ("--resume", resume), ("--reference", reference), ("--gain", gain_path), *seen_through)
         if scene_model_path is None and scene_name is None:
             raise click.UsageError(f"--model {model_kind} needs --scene-model, or --scene to start from its truth")
         if model_kind == "hybrid" and fit_to != "profiles":
@@ -87,7 +97,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     if fit_to == "profiles":
         _refuse_options("--model neural --fit-to profiles", ("--image", image_path), ("--config", config_path),
                         ("--resume", resume), ("--reference", reference), ("--gain", gain_path),
-                        ("--free-materials", free_materials))
+                        ("--free-materials", free_materials), *seen_through)
         if scene_model_path is None and scene_name is None:
             raise click.UsageError("--model neural --fit-to profiles needs --scene-model, or --scene to start from "
                                    "its truth")
@@ -102,7 +112,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     from ..recon import Problem, Trainer, load_recon_config
     from ..recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
 
-    refuse_overwriting_inputs(out, data, image_path, config_path)
+    refuse_overwriting_inputs(out, data, image_path, config_path, background_path)
     config = load_recon_config(config_path if config_path or not resume else _run_config(out))
     if device is not None:
         config = config.on_device(device_named(device))
@@ -111,6 +121,16 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     if resume and (out / CHECKPOINT_NAME).exists():
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
+    if background_path is not None:
+        try:
+            measurements = measurements.less(read_measurements(background_path))
+        except ValueError as error:
+            raise ValueError(f"{background_path}: {error}") from None
+    through = None
+    if through_name is not None:
+        from ..scene import load_scene
+
+        through = load_scene(through_name)
     gain = None
     if gain_path is not None:
         from ..radar.capture_gain import read_capture_gain
@@ -140,8 +160,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         lower, upper = image_box(data, measurements, bounds, None)
         grid = Grid.from_voxel(lower, upper, voxel_size(voxel_m, lower, upper, voxels_per_edge=50))
     known = None if calibrator is None else calibrator.labels(tuple(config.field.materials))
-    trainer = Trainer(Problem(measurements, grid, str(data), gain=gain, known_materials=known), config, out,
-                      progress=True)
+    trainer = Trainer(Problem(measurements, grid, str(data), gain=gain, known_materials=known, through=through),
+                      config, out, progress=True)
     fit = trainer.fit(resume=resume)
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)
     click.echo(f"wrote {export_mesh(mesh, out / 'mesh.ply')} ({len(mesh.faces)} faces)")

@@ -208,6 +208,23 @@ class Measurements:
         acq = self.acquisition
         return Measurements(acq.coherent_view(view), self.data[acq.frames(view)], self.noise_std, self.metadata)
 
+    def less(self, background: Measurements) -> Measurements:
+        """These samples less ``background``'s, of the same acquisition (what the scene
+        returns without the objects: an empty box's capture, or its simulation); ValueError
+        naming the first field that differs (Tx or Rx positions beyond 1 um, frequencies
+        beyond 1 Hz, views, shape)."""
+        mine, theirs = self.acquisition, background.acquisition
+        for name, tolerance in (("tx_m", 1e-6), ("rx_m", 1e-6), ("frequencies_hz", 1.0)):
+            a, b = getattr(mine, name), getattr(theirs, name)
+            if a.shape != b.shape or not bool(((a.double() - b.double()).abs() <= tolerance).all()):
+                raise ValueError(f"{name}: differs from the data's (a background must share their acquisition)")
+        if not (mine.scans is None) == (theirs.scans is None) or (
+                mine.scans is not None and not torch.equal(mine.scans, theirs.scans)):
+            raise ValueError("scans: differ from the data's (a background must share their acquisition)")
+        noise = (None if self.noise_std is None or background.noise_std is None
+                 else math.hypot(self.noise_std, background.noise_std))
+        return Measurements(mine, self.data - background.data, noise, self.metadata)
+
 
 def _kept(count: int, step: int) -> torch.Tensor:
     """Sorted indices of ceil(count / step) of ``count`` elements, a fixed pseudo-random choice."""
