@@ -122,8 +122,9 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         read_checkpoint(out / CHECKPOINT_NAME, "cpu")  # refuse a bad checkpoint before the images are made
     measurements = read_measurements(data)
     if background_path is not None:
+        background = read_measurements(background_path)  # names its file when unreadable
         try:
-            measurements = measurements.less(read_measurements(background_path))
+            measurements = measurements.less(background)
         except ValueError as error:
             raise ValueError(f"{background_path}: {error}") from None
     through = None
