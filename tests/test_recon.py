@@ -524,6 +524,61 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
     assert ReconConfig().init.peak_weight > 0
 
 
+def _known(*objects) -> Scene:
+    return Scene(SceneSpec.model_validate({"name": "known", "bounds": {"lower_m": [-0.1] * 3, "upper_m": [0.1] * 3},
+                                           "objects": list(objects)}))
+
+
+BOX = {"name": "box", "material": "wood", "shape": {"type": "difference", "children": [
+    {"type": "box", "half_extents_m": [0.05, 0.05, 0.05], "center_m": [0, 0, 0]},
+    {"type": "box", "half_extents_m": [0.047, 0.047, 0.047], "center_m": [0, 0, 0]}]}}
+
+
+def test_seen_through_a_known_box_the_voxels_outside_its_cavity_and_at_its_walls_are_left_out():
+    """``known_exclusion``: a closed 3 mm box on 6 mm voxels (no voxel centre need fall in
+    its walls): every voxel outside its cavity and within the margin of a wall is left out,
+    every voxel of the cavity farther in is kept; a sheet closes nothing, so only the voxels
+    at it are left out."""
+    from rfsdf.recon.warm_start import known_exclusion
+
+    grid = Grid.from_voxel((-0.1,) * 3, (0.1,) * 3, 0.006)
+    points = grid.points().double()
+    box = _known(BOX)
+    inner = (points.abs() < 0.047).all(1).reshape(grid.shape).numpy()
+    wall_distance = box.sdf(points).reshape(grid.shape).numpy()
+    for margin in (0.0, 0.003, 0.01):
+        out = known_exclusion(grid, box, margin)
+        np.testing.assert_array_equal(out[~inner], True)
+        np.testing.assert_array_equal(out[inner], wall_distance[inner] < margin)
+    sheet = _known({"name": "sheet", "material": "glass",
+                    "shape": {"type": "box", "half_extents_m": [0.08, 0.08, 0.0015], "center_m": [0, 0, 0.02]}})
+    distance = sheet.sdf(points).reshape(grid.shape).numpy()
+    np.testing.assert_array_equal(known_exclusion(grid, sheet, 0.004), distance < 0.004)
+
+
+def test_the_warm_start_seen_through_a_known_box_leaves_out_what_lies_outside_it(sphere_data, tmp_path, monkeypatch):
+    """With ``Problem.through`` the warm start's excluded voxels take in ``known_exclusion``
+    at ``[init] known_margin_m``: the detection, and the range peaks with it, keeps to the box."""
+    import rfsdf.recon.trainer as trainer_module
+    from rfsdf.recon.warm_start import known_exclusion
+
+    _, data = sphere_data
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
+    settings = _config(steps=2).model_dump()
+    settings["init"].update(method="mf", threshold=0.05)
+    box = _known(BOX)
+    trainer = Trainer(Problem(data, _grid(10), through=box), ReconConfig.model_validate(settings), tmp_path)
+    trainer.warm_start()
+    known = known_exclusion(trainer.problem.grid, box, ReconConfig().init.known_margin_m)
+    assert known.any() and (~known).any()
+    assert seen["exclude"][known].all()
+    grid_points = trainer.problem.grid.points().double().numpy()
+    keep = ~seen["exclude"].ravel()
+    assert (np.abs(grid_points[keep]) < 0.047).all()
+    assert seen["peaks"] is None or (np.abs(seen["peaks"].points) < 0.047 + 0.015).all()
+
+
 def test_the_fit_holds_its_zero_set_through_the_warm_starts_range_peaks(sphere_data, tmp_path):
     """``[loss] peak_weight``: while the geometry moves, the fit adds that times the
     amplitude-weighted mean |f| at the warm start's range peaks. Peaks on the true ball, a

@@ -40,7 +40,8 @@ from .app import (
 @click.option("--through", "through_name", default=None,
               help="With --model neural: a scene file or preset of what stands, known, between the radar and the "
                    "objects (the box they are packed in): the fit sees the objects through its dielectrics, T^2 and "
-                   "the slabs' delay on every line of sight. Its own return must be out of DATA (--background).")
+                   "the slabs' delay on every line of sight; objects are sought away from its walls and, where it is "
+                   "closed, inside it. Its own return must be out of DATA (--background).")
 @click.option("--background", "background_path", type=click.Path(path_type=Path), default=None,
               help="Measurements of the scene without the objects (the empty box, captured or simulated with the "
                    "same acquisition), subtracted from DATA before anything else.")

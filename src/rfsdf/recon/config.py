@@ -93,6 +93,12 @@ class InitConfig(StrictModel):
     # its matched filter (radar.range_peaks: 4.0 -> 1.2 mm from the truth, median, on the
     # demo), weight of that L1 term beside the target's; 0 turns it off
     peak_weight: NonNegativeFloat = 1.0
+    # seen through a known scene (Problem.through: a box whose own return was subtracted),
+    # what is left at its walls is no object's (the objects shadow part of the far walls, the
+    # empty box's capture does not): the voxels within this distance [m] of the known
+    # scene's objects, or in them, and outside the cavity they close (a box's inside) take
+    # no part in the detection nor in the range peaks (warm_start.known_exclusion)
+    known_margin_m: NonNegativeFloat = 0.003
 
     @field_validator("threshold", mode="before")
     @classmethod

@@ -39,7 +39,7 @@ from .losses import DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy,
 from .render import RENDERERS
 from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
-from .warm_start import detection_threshold, excluded_voxels, warm_start
+from .warm_start import detection_threshold, excluded_voxels, known_exclusion, warm_start
 
 __all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "initial_field"]
 
@@ -241,13 +241,16 @@ class Trainer:
             image = matched_filter(self.problem.measurements, grid, device=self.device)
             matched = (image.per_view.abs() ** 2).numpy()
         exclude = excluded_voxels(ic, per_view, acquisition, grid, threshold, matched_filter_power=matched)
+        if self.problem.through is not None:
+            exclude |= known_exclusion(grid, self.problem.through, ic.known_margin_m)
         normals = None
         if ic.normal_weight > 0:
             normals = specular_normals(per_view, *(c.cpu().numpy() for c in acquisition.view_centres()), grid)
         peaks = None
         if ic.peak_weight > 0 or self.config.loss.peak_weight > 0:
             peaks = range_peaks(self.problem.measurements, per_view, grid, threshold=threshold,
-                                local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude)
+                                local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude,
+                                through=self.problem.through)
             if len(peaks.points):
                 self.peaks = (torch.from_numpy(peaks.points).float().to(self.device),
                               torch.from_numpy(peaks.amplitude).float().to(self.device))

@@ -33,9 +33,10 @@ from ..geometry import Grid, gradient, interpolated_sdf, trilinear
 from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
 from ..radar.range_peaks import RangePeaks
+from ..scene import Scene
 from .losses import eikonal_penalty
 
-__all__ = ["detection_threshold", "excluded_voxels", "mask_signed_distance", "detection_target",
+__all__ = ["detection_threshold", "excluded_voxels", "known_exclusion", "mask_signed_distance", "detection_target",
            "local_peak_amplitude", "fit_to_image", "warm_start"]
 
 _CLIP_M = 0.03  # residuals beyond 3 cm count as 3 cm: far-field values need not be exact
@@ -73,6 +74,23 @@ def excluded_voxels(init, per_view_power: np.ndarray, acquisition, grid: Grid, t
             exclude |= on_range_sidelobes(power, centres, frequencies, grid, reach=init.sidelobe_reach,
                                           level=init.sidelobe_level, **rule)
     return exclude
+
+
+def known_exclusion(grid: Grid, scene: Scene, margin_m: float) -> np.ndarray:
+    """(nx, ny, nz) bool: the voxels a reconstruction seen through the known ``scene`` (a box
+    the objects are packed in) leaves out: those whose centre lies in one of its objects or
+    within ``margin_m`` [m] of one, and, where its objects close off a cavity (free voxels,
+    half a voxel from any wall so that a thin wall parts them, that do not reach beyond the
+    grid; a voxel nearer a wall goes with the free voxels nearest to it), every voxel
+    outside it: the objects are in the box."""
+    with torch.no_grad():
+        distance = scene.sdf(grid.points().double()).reshape(grid.shape).numpy()
+    walls = distance < max(margin_m, 0.5 * float(np.max(grid.voxel_m)))
+    labels, _ = ndimage.label(np.pad(~walls, 1, constant_values=True))  # the world beyond the grid is free
+    # a voxel by a wall is on the side of the free voxels nearest to it
+    nearest = labels[tuple(ndimage.distance_transform_edt(labels == 0, return_distances=False, return_indices=True))]
+    cavity = (distance > 0) & (nearest[1:-1, 1:-1, 1:-1] != labels[0, 0, 0])
+    return (distance < margin_m) | (~cavity if cavity.any() else np.zeros_like(walls))
 
 
 def mask_signed_distance(inside: np.ndarray, grid: Grid) -> np.ndarray:
