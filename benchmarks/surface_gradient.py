@@ -11,7 +11,8 @@ Usage: python benchmarks/surface_gradient.py [--size quick|full] [--errors-mm 0,
        [--variants '[{"smoothing_m": 0.006, "steps": 30}, ...]'] [--out FILE]
        [--cache DIR]   (each start's regressed field kept there and read back by a later run)
 A variant's keys: lr, lr_end, steps, refresh_every, smoothing_m, data (a data loss),
-views_per_step, data_batch (the data voxels a step; default the size's).
+views_per_step, data_batch (the data voxels a step; default the size's), knot_m (f moved
+only by a coarse displacement on knots this far apart [m]).
 """
 
 from __future__ import annotations
@@ -47,9 +48,9 @@ VARIANTS = [
 
 
 def config(settings: basin.Settings, lr=1e-4, lr_end=1e-5, steps=30, refresh_every=10, smoothing_m=0.0,
-           data="amplitude", views_per_step=None, data_batch=None) -> ReconConfig:
+           data="amplitude", views_per_step=None, data_batch=None, knot_m=None) -> ReconConfig:
     return ReconConfig.model_validate({
-        "field": {"width": settings.width, "depth": settings.depth},
+        "field": {"width": settings.width, "depth": settings.depth, "displacement_knot_m": knot_m},
         "render": {"element_step": settings.element_step, "refresh_every": refresh_every, "smoothing_m": smoothing_m},
         "loss": {"data": data},
         "sampling": {"data_batch": data_batch or settings.data_batch,
@@ -111,8 +112,11 @@ def main() -> None:
         before = {"observed_chamfer_mm": chamfer(start.sdf), **offset(start.sdf), "loss": losses(start.sdf)}
         for variant in args.variants:
             clock = time.perf_counter()
+            settings_v = config(settings, **variant)
+            begin = initial_field(grid, settings_v, torch.device("cpu"))  # the start, with a zero displacement if any
+            begin.load_state_dict(start.state_dict(), strict=False)
             with tempfile.TemporaryDirectory() as folder:
-                fit = Trainer(problem, config(settings, **variant), folder, start=start.state_dict()).fit()
+                fit = Trainer(problem, settings_v, folder, start=begin.state_dict()).fit()
             after = {"observed_chamfer_mm": chamfer(fit.field.sdf), **offset(fit.field.sdf),
                      "loss": losses(fit.field.sdf)}
             rows.append({"error_mm": error_mm, "variant": variant, "before": before, "after": after,

@@ -64,3 +64,23 @@ def test_eikonal_loss_of_an_exact_sdf_is_zero_and_of_a_scaled_one_is_not():
     loss = eikonal_loss(field.sdf, points)
     loss.backward()  # create_graph: the loss trains the network
     assert field.geometry.layers[0].weight.grad is not None
+
+
+def test_a_knot_displacement_moves_the_zero_set_along_the_normal_and_reads_a_linear_field_exactly():
+    """f - d: a uniform d grows a ball by d (|p| - r - d is zero at |p| = r + d); a d linear
+    in x is read exactly between the knots."""
+    field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=2, init_radius_m=0.05, displacement_knot_m=0.02)
+    knots = field.displacement.grid
+    assert knots.voxel_m == pytest.approx([0.02] * 3)
+    assert all(lo < -0.1 and hi > 0.1 for lo, hi in zip(knots.lower_m, knots.upper_m))  # a knot beyond each side
+    points = (torch.rand(500, 3) - 0.5) * 0.2
+    with torch.no_grad():
+        plain = field.sdf(points)
+        field.displacement.offsets_m.fill_(0.003)
+        assert torch.allclose(plain - field.sdf(points), torch.full((500,), 0.003), atol=1e-7)
+        x = torch.as_tensor(knots.axes()[0], dtype=torch.float32)
+        field.displacement.offsets_m.copy_(0.01 * x[:, None, None].expand(knots.shape))
+        assert torch.allclose(plain - field.sdf(points), 0.01 * points[:, 0], atol=1e-7)
+    assert field.state_dict()["displacement.offsets_m"].shape == knots.shape
+    with pytest.raises(ValueError, match="knot spacing"):
+        RadarField((-0.1,) * 3, (0.1,) * 3, levels=2, displacement_knot_m=0.0)

@@ -17,6 +17,7 @@ import math
 import torch
 from torch import nn
 
+from .displacement import KnotDisplacement
 from .encoding import PositionalEncoding
 
 __all__ = ["SDFNetwork", "ReflectivityNetwork", "MaterialHead", "RadarField"]
@@ -139,12 +140,15 @@ class RadarField(nn.Module):
 
     ``sdf(points)`` : (N, 3) [m] -> (N,) [m]; ``reflectivity(points)`` : (N,) >= 0;
     ``material(points)`` : (N, K) class probabilities over ``materials`` (catalogue names,
-    ``rfsdf.materials``), when the field has any.
+    ``rfsdf.materials``), when the field has any. With ``displacement_knot_m`` f is the
+    network's SDF less a coarse displacement (``KnotDisplacement``, zero at the start), the
+    part of the geometry a fit may move alone.
     """
 
     def __init__(self, lower_m, upper_m, *, levels: int, depth: int = 6, width: int = 128,
                  init_radius_m: float | None = None, geometric_init: bool = True,
-                 reflectivity_width: int = 64, reflectivity_floor: float = 0.02, materials: tuple[str, ...] = ()):
+                 reflectivity_width: int = 64, reflectivity_floor: float = 0.02, materials: tuple[str, ...] = (),
+                 displacement_knot_m: float | None = None):
         super().__init__()
         self.lower_m, self.upper_m = tuple(map(float, lower_m)), tuple(map(float, upper_m))  # [m]
         self.encoding = PositionalEncoding(lower_m, upper_m, levels)
@@ -156,13 +160,18 @@ class RadarField(nn.Module):
                                                floor=reflectivity_floor)
         self.materials = tuple(materials)
         self.material_head = MaterialHead(width, len(materials), width=reflectivity_width) if materials else None
+        self.displacement = (None if displacement_knot_m is None
+                             else KnotDisplacement(lower_m, upper_m, displacement_knot_m))
+
+    def _displaced(self, values: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
+        return values if self.displacement is None else values - self.displacement(points)
 
     def sdf(self, points: torch.Tensor) -> torch.Tensor:
-        return self.geometry(self.encoding(points)) * self.encoding.half_extent_m
+        return self._displaced(self.geometry(self.encoding(points)) * self.encoding.half_extent_m, points)
 
     def sdf_and_reflectivity(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         encoded = self.encoding(points)
-        return self.geometry(encoded) * self.encoding.half_extent_m, self.reflectance(encoded)
+        return self._displaced(self.geometry(encoded) * self.encoding.half_extent_m, points), self.reflectance(encoded)
 
     def reflectivity(self, points: torch.Tensor) -> torch.Tensor:
         return self.reflectance(self.encoding(points))

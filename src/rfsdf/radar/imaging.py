@@ -15,7 +15,7 @@ import torch
 from ..geometry import Grid
 from ..limits import require_memory
 from ..progress import progress_bar
-from .acquisition import Acquisition, Measurements
+from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from .fast_imaging import DEFAULT_OVERSAMPLING, fast_adjoint
 from .operator import SensingOperator
 
@@ -99,26 +99,32 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
 
 
 def view_correlation(measurements: Measurements, view: int, points: torch.Tensor, *, method: str = "auto",
-                     oversampling: int = DEFAULT_OVERSAMPLING) -> torch.Tensor:
+                     oversampling: int = DEFAULT_OVERSAMPLING, advance_m: float = 0.0) -> torch.Tensor:
     """(Q,) float: |A_q^H y| / ||A_q|| of view ``view`` alone (a frame, or a scan's frames
     summed coherently) at any ``points`` (Q, 3) [m], not only a grid's voxels; ``method`` as in
     :func:`matched_filter`. The matched filter over the column's norm, not its square as in
     c_hat: by Cauchy-Schwarz a point target's is largest exactly at the point, where |c_hat|
-    peaks further from the array (the norm falls with the spreading)."""
+    peaks further from the array (the norm falls with the spreading). ``advance_m`` [m]: the
+    view's data advanced by this path first (every element's return made earlier by it, a
+    delay taken out)."""
     fast = imaging_method(measurements.acquisition, method, points.device) == "fast"
-    numerator, norms = _one_view(measurements, view, points, fast, oversampling)
+    numerator, norms = _one_view(measurements, view, points, fast, oversampling, advance_m)
     return safe_divide(numerator.abs(), norms.sqrt()).reshape(-1)
 
 
 def _one_view(measurements: Measurements, view: int, points: torch.Tensor, fast: bool,
-              oversampling: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """A_v^H y_v and ||A_v||^2 of view ``view`` at ``points``, each (Q,) or (1, Q)."""
+              oversampling: int, advance_m: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """A_v^H y_v and ||A_v||^2 of view ``view`` at ``points``, each (Q,) or (1, Q), y_v advanced
+    by ``advance_m`` [m] of path."""
     acq = measurements.acquisition
+    frames = slice(view, view + 1) if acq.scans is None else acq.frames(view)
+    data = measurements.data[frames]
+    if advance_m:
+        phase = 2 * torch.pi * acq.frequencies_hz.double() * advance_m / SPEED_OF_LIGHT
+        data = data * torch.polar(torch.ones_like(phase), phase).to(data)
     if acq.scans is None:
-        return _back_projection(acq.view(view), measurements.data[view:view + 1], points, fast, oversampling,
-                                True, False)
-    return _back_projection(acq.coherent_view(view), measurements.data[acq.frames(view)], points, fast,
-                            oversampling, False, False)
+        return _back_projection(acq.view(view), data, points, fast, oversampling, True, False)
+    return _back_projection(acq.coherent_view(view), data, points, fast, oversampling, False, False)
 
 
 def _back_projection(acq: Acquisition, data: torch.Tensor, points: torch.Tensor, fast: bool, oversampling: int,

@@ -27,14 +27,13 @@ is dropped (no return reaches the view from there).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from ..scene import Scene
-from .acquisition import SPEED_OF_LIGHT, Measurements
+from .acquisition import Measurements
 from .detection import range_ridges
 from .imaging import view_correlation
 from .transmission import line_of_sight
@@ -103,7 +102,7 @@ def _line_correlation(measurements: Measurements, view: int, lines: np.ndarray,
                       excess_m: np.ndarray | None) -> np.ndarray:
     """(N, S) float64: the view's correlation (:func:`~rfsdf.radar.imaging.view_correlation`)
     at the points ``lines`` (N, S, 3) [m]; with ``excess_m`` (N,) [m], each line's with the
-    data advanced by its two-way excess path (grouped to EXCESS_STEP_M, one correlation a group)."""
+    view's data advanced by its two-way excess path (grouped to EXCESS_STEP_M, one correlation a group)."""
     n, s = lines.shape[:2]
     if excess_m is None:
         groups, members = np.zeros(1), np.zeros(n, int)
@@ -111,14 +110,12 @@ def _line_correlation(measurements: Measurements, view: int, lines: np.ndarray,
         groups, members = np.unique(np.round(excess_m / EXCESS_STEP_M), return_inverse=True)
         groups = groups * EXCESS_STEP_M
     amplitude = np.zeros((n, s))
-    k = 2 * np.pi * measurements.acquisition.frequencies_hz / SPEED_OF_LIGHT
     for group, excess in enumerate(groups):
         rows = members == group
-        data = measurements if excess == 0 else dataclasses.replace(
-            measurements, data=measurements.data * torch.exp(1j * k * excess))
         samples = torch.from_numpy(lines[rows].reshape(-1, 3)).float()
         with torch.no_grad():
-            amplitude[rows] = view_correlation(data, view, samples).reshape(rows.sum(), s).double().numpy()
+            correlation = view_correlation(measurements, view, samples, advance_m=float(excess))
+        amplitude[rows] = correlation.reshape(rows.sum(), s).double().numpy()
     return amplitude
 
 

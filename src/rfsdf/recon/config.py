@@ -31,6 +31,10 @@ class FieldConfig(StrictModel):
     # each surface sample by the Fresnel coefficient of its material; [] fits a free
     # reflectivity instead (the option kept for comparison)
     materials: list[str] = list(MATERIAL_CLASSES)
+    # knots [m] of a coarse displacement of the warm start's surface (rfsdf.field.displacement):
+    # set, the fit moves f only through it (the network's geometry stays as the warm start left
+    # it); None: the fit moves the network itself
+    displacement_knot_m: PositiveFloat | None = None
 
     @field_validator("materials")
     @classmethod

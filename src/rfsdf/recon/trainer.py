@@ -120,7 +120,8 @@ def _field_kwargs(grid: Grid, config: ReconConfig) -> dict:
     return dict(lower_m=grid.lower_m, upper_m=grid.upper_m, levels=levels, depth=fc.depth, width=fc.width,
                 init_radius_m=radius, geometric_init=fc.geometric_init,
                 reflectivity_width=fc.reflectivity_width, reflectivity_floor=fc.reflectivity_floor,
-                materials=tuple(fc.materials))
+                materials=tuple(fc.materials),
+                **({} if fc.displacement_knot_m is None else {"displacement_knot_m": fc.displacement_knot_m}))
 
 
 def initial_field(grid: Grid, config: ReconConfig, device) -> RadarField:
@@ -150,8 +151,9 @@ class Trainer:
         self.field_kwargs = _field_kwargs(problem.grid, config)
         self.field = initial_field(problem.grid, config, self.device)
         tc, rc = config.train, config.render
-        head = self.field.material_head
-        groups = [{"params": self.field.geometry.parameters(), "lr": tc.lr},
+        head, displacement = self.field.material_head, self.field.displacement
+        geometry = (displacement if displacement is not None else self.field.geometry).parameters()
+        groups = [{"params": geometry, "lr": tc.lr},
                   {"params": self.field.reflectance.parameters(), "lr": tc.lr * tc.reflectivity_lr_scale},
                   {"params": head.parameters() if head is not None else [], "lr": tc.lr * tc.material_lr_scale}]
         self.optimizer = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay)

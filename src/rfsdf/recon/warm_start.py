@@ -132,12 +132,15 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     faces the views see turn towards where the views say they face, the others are left alone.
     With ``surface_m`` (M, 3) [m], points the surface is known to pass through, and their
     ``surface_weights`` (M,), the loss adds ``surface_weight`` * |f| at a quarter batch of them
-    drawn in proportion to their weights. Returns the last clipped L1 residual of f [m].
+    drawn in proportion to their weights. The field's coarse displacement, where it has one,
+    stays as it is (zero): it is what the fit moves afterwards. Returns the last clipped L1
+    residual of f [m].
     """
     device = next(field.parameters()).device
     lower = torch.as_tensor(lower_m, dtype=torch.float32)
     extent = torch.as_tensor(upper_m, dtype=torch.float32) - lower
-    optimizer = torch.optim.Adam(field.parameters(), lr=lr)
+    optimizer = torch.optim.Adam([p for name, p in field.named_parameters() if not name.startswith("displacement.")],
+                                 lr=lr)
     residual = float("nan")
     near_count = 0 if near_m is None or len(near_m) == 0 else int(near_share * batch)
     for _ in progress_bar(range(steps), desc="warm start", enabled=progress):

@@ -133,7 +133,7 @@ def smooth_displacement(scene, correlation_m: float, generator: torch.Generator)
     surface = scene.sample_surface(0.002, seed=0, max_samples=50_000).points
     with torch.no_grad():
         rms = float(field_at(surface).pow(2).mean().sqrt())
-    return lambda points: field_at(points.detach().float().cpu()).to(points) / rms
+    return lambda points: field_at(points.float().cpu()).to(points) / rms  # differentiable in the points
 
 
 def run(settings: Settings) -> Result:
