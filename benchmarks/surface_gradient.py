@@ -112,11 +112,11 @@ def main() -> None:
         before = {"observed_chamfer_mm": chamfer(start.sdf), **offset(start.sdf), "loss": losses(start.sdf)}
         for variant in args.variants:
             clock = time.perf_counter()
-            settings_v = config(settings, **variant)
-            begin = initial_field(grid, settings_v, torch.device("cpu"))  # the start, with a zero displacement if any
+            variant_config = config(settings, **variant)
+            begin = initial_field(grid, variant_config, torch.device("cpu"))  # the start, with a zero displacement if any
             begin.load_state_dict(start.state_dict(), strict=False)
             with tempfile.TemporaryDirectory() as folder:
-                fit = Trainer(problem, settings_v, folder, start=begin.state_dict()).fit()
+                fit = Trainer(problem, variant_config, folder, start=begin.state_dict()).fit()
             after = {"observed_chamfer_mm": chamfer(fit.field.sdf), **offset(fit.field.sdf),
                      "loss": losses(fit.field.sdf)}
             rows.append({"error_mm": error_mm, "variant": variant, "before": before, "after": after,

@@ -24,12 +24,10 @@ class KnotDisplacement(nn.Module):
         if not knot_m > 0:
             raise ValueError(f"knot spacing must be positive [m], got {knot_m}")
         lower, upper = np.asarray(lower_m, float) - knot_m, np.asarray(upper_m, float) + knot_m
-        shape = np.ceil((upper - lower) / knot_m).astype(int) + 1  # knots at the voxel centres
-        centre = (lower + upper) / 2
-        half = (shape * knot_m) / 2  # each voxel knot_m wide, its centre a knot
-        self.grid = Grid(tuple(centre - half), tuple(centre + half), tuple(int(n) for n in shape))
-        self.knot_m = float(knot_m)
-        self.offsets_m = nn.Parameter(torch.zeros(tuple(int(n) for n in shape)))
+        counts = np.ceil((upper - lower) / knot_m).astype(int) + 1  # knots at the voxel centres
+        centre, half = (lower + upper) / 2, counts * knot_m / 2  # each voxel knot_m wide, its centre a knot
+        self.grid = Grid(tuple(centre - half), tuple(centre + half), tuple(int(n) for n in counts))
+        self.offsets_m = nn.Parameter(torch.zeros(self.grid.shape))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         return trilinear(self.offsets_m, self.grid)(points)
