@@ -118,3 +118,21 @@ def test_per_frequency_reflectivity_against_dense_and_gradcheck():
     op = SensingOperator(acq)
     args = (pts.clone().requires_grad_(True), c.clone().requires_grad_(True))
     assert torch.autograd.gradcheck(lambda p, cc: op.forward(p, cc), args, eps=1e-7, atol=1e-6, rtol=1e-4)
+
+
+def test_a_spectrum_beside_per_view_reflectivity_is_their_product_and_gradchecks():
+    """c (V, Q) with a spectrum s (K, Q) common to every view (a scan's frames each with its
+    own lobe, the facets' phase integral from the scan's centre): the data are A (c s) with
+    c s formed as (V, K, Q), and the backward passes gradcheck in the positions, c and s."""
+    acq, pts = _random_acquisition(14), _points(15, q=3).double()
+    v, _, _, k = acq.shape
+    generator = torch.Generator().manual_seed(2)
+    c = torch.randn(v, len(pts), dtype=torch.complex128, generator=generator)
+    s = torch.randn(k, len(pts), dtype=torch.complex128, generator=generator)
+    op = SensingOperator(acq)
+    torch.testing.assert_close(op.forward(pts, c, spectrum=s), op.forward(pts, c[:, None] * s[None]))
+    with pytest.raises(ValueError, match="spectrum must have shape"):
+        op.forward(pts, c, spectrum=s[:, :2])
+    args = (pts.clone().requires_grad_(True), c.clone().requires_grad_(True), s.clone().requires_grad_(True))
+    assert torch.autograd.gradcheck(lambda p, cc, ss: op.forward(p, cc, spectrum=ss), args, eps=1e-7, atol=1e-6,
+                                    rtol=1e-4)

@@ -136,13 +136,17 @@ class SensingOperator:
                      for pos in (acq.tx_m, acq.rx_m))
 
     # Public operations ----------------------------------------------------------------
-    def forward(self, points: torch.Tensor, c: torch.Tensor, *, progress: bool = False) -> torch.Tensor:
+    def forward(self, points: torch.Tensor, c: torch.Tensor, *, spectrum: torch.Tensor | None = None,
+                progress: bool = False) -> torch.Tensor:
         """y = A c : (V, T, R, K) complex64 (complex128 for float64 points).
 
         points : (Q, 3) [m], scene frame. c : (Q,), (V, Q) or (V, K, Q) complex
         reflectivities (one set for all views, one per view, e.g. angle-dependent
         scattering, or one per view and frequency, e.g. a facet's phase integral,
-        ``radar/facets.py``). Differentiable in ``c`` and ``points``.
+        ``radar/facets.py``). spectrum : (K, Q) complex, a factor per frequency common to
+        every view, so that c (V, Q) times it stands for (V, K, Q) without forming it (a
+        scan's frames each with its own lobe, their facets' phase integral from the scan's
+        centre). Differentiable in ``c``, ``spectrum`` and ``points``.
         """
         points = as_points(points)
         v_total, k_total, q = self.acq.shape[0], self.acq.shape[3], points.shape[0]
@@ -151,7 +155,12 @@ class SensingOperator:
                              f"({v_total}, {k_total}, {q}), got {tuple(c.shape)}")
         c = c.to(_complex_dtype(points.dtype))
         c = c.reshape(-1, 1, q).expand(v_total, 1, q) if c.dim() < 3 else c  # (V, 1 or K, Q)
-        return _ApplyA.apply(points, c, self, progress)
+        if spectrum is None:
+            return _ApplyA.apply(points, c, self, progress, None)
+        if tuple(spectrum.shape) != (k_total, q) or c.shape[1] != 1:
+            raise ValueError(f"spectrum must have shape (K, Q) = ({k_total}, {q}) beside c of shape (Q,) or (V, Q), "
+                             f"got {tuple(spectrum.shape)} beside {tuple(c.shape)}")
+        return _ApplyA.apply(points, c, self, progress, spectrum.to(c.dtype))
 
     def forward_weighted(self, points: torch.Tensor, c: torch.Tensor,
                          weight: Callable[[slice, slice], torch.Tensor], *, progress: bool = False) -> torch.Tensor:
@@ -213,8 +222,10 @@ class SensingOperator:
     # The passes behind forward/adjoint and their gradients -------------------------------
     @torch.no_grad()
     def _apply(self, points: torch.Tensor, c: torch.Tensor, progress: bool = False,
-               weight: Callable[[slice, slice], torch.Tensor] | None = None) -> torch.Tensor:
-        """A c for c (V, 1 or K, Q), times ``weight`` (see forward_weighted): (V, T, R, K).
+               weight: Callable[[slice, slice], torch.Tensor] | None = None,
+               spectrum: torch.Tensor | None = None) -> torch.Tensor:
+        """A c for c (V, 1 or K, Q), times ``weight`` (see forward_weighted) or ``spectrum``
+        (K, Q) (see forward): (V, T, R, K).
         Each chunk's data are added into one (V, K, T, R) sum as it comes: kept apart until
         the end, the 45,680 chunks of a 10 x 10 m room filled 24 GiB (measured)."""
         total = None
@@ -224,6 +235,8 @@ class SensingOperator:
             cw = c[views, :, None, pts]  # (v, 1 or K, 1, q)
             if weight is not None:
                 cw = cw * weight(views, pts)[:, :, None, :].to(cw.dtype)
+            if spectrum is not None:
+                cw = cw * spectrum[None, :, None, pts]
             y = torch.matmul(u * cw, w.transpose(-1, -2))  # (v, K, T, R)
             if total is None:
                 total = torch.zeros((self.acq.shape[0], *y.shape[1:]), dtype=y.dtype, device=y.device)
@@ -253,13 +266,15 @@ class SensingOperator:
         return torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
 
     @torch.no_grad()
-    def _apply_vjp(self, points: torch.Tensor, c: torch.Tensor, grad_y: torch.Tensor, need_points: bool):
-        """Gradients of a real loss with respect to c (V, 1 or K, Q) and points (Q, 3), given g = dL/dy."""
+    def _apply_vjp(self, points: torch.Tensor, c: torch.Tensor, grad_y: torch.Tensor, need_points: bool,
+                   spectrum: torch.Tensor | None = None):
+        """Gradients of a real loss with respect to c (V, 1 or K, Q), ``spectrum`` (K, Q) (None:
+        none; see forward) and points (Q, 3), given g = dL/dy."""
         acq = self.acq
         k = self._wavenumbers(points.device).to(points.dtype if points.dtype == torch.float64 else torch.float32)
         g = grad_y.conj().permute(0, 3, 1, 2)  # (V, K, T, R)
-        per_frequency_c = c.shape[1] > 1
         grad_c = torch.zeros_like(c)
+        grad_spectrum = None if spectrum is None else torch.zeros_like(spectrum)
         grad_points = torch.zeros(points.shape, dtype=points.dtype, device=points.device) if need_points else None
         for views, pts in self._chunks(points.shape[0], points.device, _BACKWARD_BUFFERS):
             tx = self._geometry(acq.tx_m[views], acq.boresight[views], points[pts], derivatives=True)
@@ -268,34 +283,45 @@ class SensingOperator:
             g_v = g[views]
             per_tx = u * torch.matmul(g_v, w)  # (v, K, T, q): sum_j conj(g) A over Rx
             per_frequency = per_tx.sum(dim=2)  # (v, K, q)
-            grad_c[views, :, pts] = (per_frequency if per_frequency_c else per_frequency.sum(1, keepdim=True)).conj()
+            c_chunk = c[views, :, pts]  # (v, 1 or K, q): the reflectivity A sees, times the spectrum if any
+            if spectrum is not None:
+                grad_c[views, :, pts] = (per_frequency.conj() * spectrum[:, pts].conj()).sum(1, keepdim=True)
+                grad_spectrum[:, pts] += (per_frequency.conj() * c_chunk.conj()).sum(0)
+                c_chunk = c_chunk * spectrum[:, pts]
+            else:
+                grad_c[views, :, pts] = (per_frequency if c.shape[1] > 1 else per_frequency.sum(1, keepdim=True)).conj()
             if need_points:
                 per_rx = w * torch.matmul(g_v.transpose(-1, -2), u)  # (v, K, R, q): sum_i over Tx
+                per_frequency_c = c_chunk.shape[1] > 1
                 total = 0
                 for per_element, (_, _, unit, dlog) in ((per_tx, tx), (per_rx, rx)):
                     if per_frequency_c:  # c inside the sum over frequencies; else it factors out of it
-                        per_element = c[views, :, None, pts] * per_element  # (v, K, E, q)
+                        per_element = c_chunk[:, :, None] * per_element  # (v, K, E, q)
                     plain = per_element.sum(1)  # (v, E, q)
                     weighted = (k[None, :, None, None] * per_element).sum(1)
                     total = total + (plain[..., None] * dlog).sum(1) - 1j * (weighted[..., None] * unit).sum(1)
-                grad_points[pts] += (total if per_frequency_c else c[views, 0, pts, None] * total).real.sum(0)
-        return grad_c, grad_points
+                grad_points[pts] += (total if per_frequency_c else c_chunk[:, 0, :, None] * total).real.sum(0)
+        return grad_c, grad_spectrum, grad_points
 
 
 class _ApplyA(torch.autograd.Function):
-    """y = A(points) c with the memory-bounded backward of :meth:`SensingOperator._apply_vjp`."""
+    """y = A(points) (c times spectrum) with the memory-bounded backward of
+    :meth:`SensingOperator._apply_vjp`."""
 
     @staticmethod
-    def forward(ctx, points, c, op, progress):
-        ctx.save_for_backward(points, c)
+    def forward(ctx, points, c, op, progress, spectrum):
+        ctx.save_for_backward(points, c, spectrum)
         ctx.op = op
-        return op._apply(points.detach(), c.detach(), progress)
+        return op._apply(points.detach(), c.detach(), progress, spectrum=None if spectrum is None else spectrum.detach())
 
     @staticmethod
     def backward(ctx, grad_y):
-        points, c = ctx.saved_tensors
-        grad_c, grad_points = ctx.op._apply_vjp(points.detach(), c.detach(), grad_y, ctx.needs_input_grad[0])
-        return grad_points, grad_c if ctx.needs_input_grad[1] else None, None, None
+        points, c, spectrum = ctx.saved_tensors
+        grad_c, grad_spectrum, grad_points = ctx.op._apply_vjp(
+            points.detach(), c.detach(), grad_y, ctx.needs_input_grad[0],
+            None if spectrum is None else spectrum.detach())
+        return (grad_points, grad_c if ctx.needs_input_grad[1] else None, None, None,
+                grad_spectrum if ctx.needs_input_grad[4] else None)
 
 
 class _ApplyAH(torch.autograd.Function):

@@ -69,7 +69,8 @@ class CoherentRenderer:
     scan, 1/n^2 of its frames). frequency_step : every n-th frequency, alike (ValueError
     when the unambiguous range c / (2 n df) is shorter than the grid's range extent). A
     view is a frame, or all frames of a scan (``Acquisition.scans``), whose samples scatter
-    as seen from the scan's phase centres.
+    towards each frame's own phase centres (their facets' phase integral, facing and shadows
+    from the scan's).
     surface : "facets", flat triangles of f = 0 whose phase is integrated across them
     (``recon/surface_mesh.py``: the converged quadrature, as the simulator's), or "points",
     random points near it (``recon/surface.py``: a Monte Carlo quadrature, kept for comparison).
@@ -111,6 +112,9 @@ class CoherentRenderer:
         tx_centres, rx_centres = acq.view_centres()
         self.tx_centres = tx_centres.to(self.device, dtype)  # (V, 3)
         self.rx_centres = rx_centres.to(self.device, dtype)
+        # per view, each frame's Tx and Rx phase centres, (F, 3) each (a MIMO view: one frame)
+        self.frame_centres = [(op.acq.tx_m.mean(1).to(self.device, dtype), op.acq.rx_m.mean(1).to(self.device, dtype))
+                              for op in self.operators]
         require_image_memory(acq.num_views, grid, "the fit's images")
         self.voxels = grid.points(device=self.device, dtype=dtype)  # (N, 3)
         self.column_norms_sq = torch.stack([op.column_norms_sq(self.voxels) for op in self.operators])  # (V, N)
@@ -224,22 +228,27 @@ class CoherentRenderer:
                      reflection, corners_m: torch.Tensor | None = None, sight: torch.Tensor | None = None,
                      excess_m: torch.Tensor | None = None) -> torch.Tensor:
         """y_v = A_v c_v (F, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
-        c_v from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there), and for
+        c_v (F, Q) from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there) in each
+        of its frames, and for
         facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
         the phase integral across each at each frequency; seen through objects, times each
         sample's ``sight`` (Q,) and delayed by its ``excess_m`` (Q,) [m] (``through``). The
         simulator's data, for the simulator's samples and their Fresnel reflection."""
         tx, rx = self.tx_centres[view], self.rx_centres[view]
-        c = scatter(points, normals, area_m2, reflection, tx, rx, self.wavenumber_rad_m, **self.lobe)
+        # each frame's lobe towards its own phase centres, as the simulator's (a scan's frames
+        # see a facet from up to some 15 degrees apart; its centre's lobe alone left the true
+        # scene 12-19 % dimmer than sar-77g's data, benchmarks/scan_model.py)
+        c = torch.stack([scatter(points, normals, area_m2, reflection, frame_tx, frame_rx, self.wavenumber_rad_m,
+                                 **self.lobe) for frame_tx, frame_rx in zip(*self.frame_centres[view])])  # (F, Q)
         if sight is not None:
             c = c * sight.to(c.dtype)
+        spectrum = None  # (K, Q): what each frequency adds, alike in every frame (from the view's centre)
         if corners_m is not None:
-            c = c[None] * facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)  # (K, Q)
+            spectrum = facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)
         if excess_m is not None:
-            c = c * excess_delay(self.frequencies_hz, self.centre_frequency_hz, excess_m).to(c.dtype)  # (K, Q)
-        operator = self.operators[view]
-        c = c[None].expand(operator.acq.shape[0], *c.shape)  # the same c in each of the view's frames
-        return operator.forward(points, c) * self.po_spectrum.to(c.dtype)
+            delay = excess_delay(self.frequencies_hz, self.centre_frequency_hz, excess_m).to(c.dtype)
+            spectrum = delay if spectrum is None else spectrum * delay
+        return self.operators[view].forward(points, c, spectrum=spectrum) * self.po_spectrum.to(c.dtype)
 
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
         """(K,) complex128 relative permittivities of catalogue materials at the data's centre
