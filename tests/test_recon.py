@@ -22,7 +22,7 @@ from rfsdf.recon import (
     CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss, load_field, project_to_surface,
     surface_candidates,
 )
-from rfsdf.recon.losses import complex_loss, split_spectrum_loss
+from rfsdf.recon.losses import DATA_LOSSES, complex_loss, split_spectrum_loss
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
 from rfsdf.recon.warm_start import detection_target, fit_to_image
 from rfsdf.scene import Scene, load_scene
@@ -844,6 +844,23 @@ def test_the_complex_loss_forgives_each_views_phase_and_gain_but_not_a_phase_err
     assert float(complex_loss(predicted, moved)) > 0.01 > float(amplitude_loss(predicted, moved))
     observed = 2.5 * turns * moved
     assert torch.autograd.gradcheck(lambda p: complex_loss(p, observed), (predicted.clone().requires_grad_(True),))
+
+
+def test_each_data_loss_per_voxel_is_where_its_misfit_lies_and_sums_to_it():
+    """``per_voxel``: each voxel's share of a data loss (summed over the views), the whole
+    loss when summed, gain fitted or held; a misfit confined to one voxel lies there alone."""
+    g = torch.Generator().manual_seed(3)
+    predicted = torch.randn(3, 2, 30, dtype=torch.complex128, generator=g)
+    observed = predicted.clone()
+    observed[:, :, 11] += 0.5
+    for name in DATA_LOSSES.names():
+        loss = DATA_LOSSES.get(name)
+        p, o = (predicted, observed) if name == "split" else (predicted.sum(1), observed.sum(1))
+        for fit_gain in (True, False):
+            shares = loss(p, o, fit_gain=fit_gain, per_voxel=True)
+            assert shares.shape == (30,) and float(shares.sum()) == pytest.approx(float(loss(p, o, fit_gain=fit_gain)))
+        shares = loss(p, o, fit_gain=False, per_voxel=True)  # (the complex loss still turns each view)
+        assert float(shares[11]) > 0 and float(shares.sum() - shares[11]) < 0.05 * float(shares[11]), name
 
 
 def test_split_spectrum_interferograms_see_the_range_that_each_views_phase_absorbs():

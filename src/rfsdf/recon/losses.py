@@ -7,7 +7,8 @@ radar gain is known, so a data loss first scales the prediction by the least-squ
 (held constant for the gradient, one gain for all views of the step: relative brightness
 between views is physics, not calibration), and is normalised by the observed energy, so 0
 is a perfect fit and 1 is a prediction orthogonal to the data. With a known gain
-(``fit_gain=False``) the prediction is compared as it is. A loss that compares phases
+(``fit_gain=False``) the prediction is compared as it is; ``per_voxel=True``: each voxel's
+share of the loss (X,), to say where the misfit lies. A loss that compares phases
 (``uses_phase``) is compared voxel by voxel, never pooled over cells (``recon/sampling.py``).
 
 Amplitude locates a glint to a fraction of the range resolution c / 2B (37.5 mm at 4 GHz);
@@ -30,34 +31,44 @@ __all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "complex_loss", "split
 DATA_LOSSES: Registry = Registry("data loss")
 
 
-def _misfit(predicted: torch.Tensor, observed: torch.Tensor, fit_gain: bool) -> torch.Tensor:
+def _relative(squared_residual: torch.Tensor, squared_observed: torch.Tensor, per_voxel: bool) -> torch.Tensor:
+    """sum(residual^2) / sum(observed^2) over (v, X), or ``per_voxel`` each voxel's share (X,)
+    of it (summed over the views), whose sum is the loss: where the misfit lies."""
+    numerator = squared_residual.sum(0) if per_voxel else squared_residual.sum()
+    return numerator / squared_observed.sum().clamp(min=torch.finfo(squared_observed.dtype).tiny)
+
+
+def _misfit(predicted: torch.Tensor, observed: torch.Tensor, fit_gain: bool, per_voxel: bool) -> torch.Tensor:
     """sum((g p - o)^2) / sum(o^2) with the least-squares gain g = <p, o> / <p, p>, detached
     (``fit_gain``), or g = 1 where the prediction is already in the data's units."""
     gain = 1.0
     if fit_gain:
         with torch.no_grad():
             gain = (predicted * observed).sum() / (predicted * predicted).sum().clamp(min=torch.finfo(predicted.dtype).tiny)
-    return ((gain * predicted - observed) ** 2).sum() / (observed**2).sum().clamp(min=torch.finfo(observed.dtype).tiny)
+    return _relative((gain * predicted - observed) ** 2, observed**2, per_voxel)
 
 
 @DATA_LOSSES.register("amplitude")
-def amplitude_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def amplitude_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True,
+                   per_voxel: bool = False) -> torch.Tensor:
     """Misfit of MF *amplitudes* |c_hat|: where the glints are and how bright, not the
     carrier phase of each (an absolute phase is not a geometric fact worth fitting).
     With the fitted gain it equals 1 - cos^2 between the amplitude images; ``fit_gain=False``
     when the radar gain is known (the prediction is in the data's units), so that absolute
     brightness, and with it each material's |Gamma|, is data too."""
-    return _misfit(predicted.abs(), observed.abs(), fit_gain)
+    return _misfit(predicted.abs(), observed.abs(), fit_gain, per_voxel)
 
 
 @DATA_LOSSES.register("power")
-def power_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def power_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True,
+               per_voxel: bool = False) -> torch.Tensor:
     """Misfit of MF power |c_hat|^2: weights the brightest glints more than ``amplitude``."""
-    return _misfit(predicted.abs() ** 2, observed.abs() ** 2, fit_gain)
+    return _misfit(predicted.abs() ** 2, observed.abs() ** 2, fit_gain, per_voxel)
 
 
 @DATA_LOSSES.register("complex")
-def complex_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def complex_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True,
+                 per_voxel: bool = False) -> torch.Tensor:
     """Misfit of the complex MF images (v, X): sum |g e^{j phi_v} p - o|^2 / sum |o|^2, each
     view's prediction turned by the phase phi_v = arg <p_v, o_v> that best aligns it with the
     data (an unknown absolute phase per view, a range offset of the radar's: not a geometric
@@ -72,15 +83,15 @@ def complex_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: b
         inner = (predicted.conj() * observed).sum(1)  # (v,)
         turn = inner / inner.abs().clamp(min=tiny)
         gain = inner.abs().sum() / (predicted.abs() ** 2).sum().clamp(min=tiny) if fit_gain else 1.0
-    residual = gain * turn[:, None] * predicted - observed
-    return (residual.abs() ** 2).sum() / (observed.abs() ** 2).sum().clamp(min=tiny)
+    return _relative((gain * turn[:, None] * predicted - observed).abs() ** 2, observed.abs() ** 2, per_voxel)
 
 
 complex_loss.uses_phase = True
 
 
 @DATA_LOSSES.register("split")
-def split_spectrum_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True) -> torch.Tensor:
+def split_spectrum_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_gain: bool = True,
+                        per_voxel: bool = False) -> torch.Tensor:
     """Misfit of the split-spectrum interferograms of (v, 2, X) complex images of the lower and
     upper half of the band: I_lo conj(I_hi) at each voxel, whose phase is the synthetic
     wavenumber 2 (k_hi - k_lo) times the glints' range from the voxel (the carrier's own
@@ -96,7 +107,7 @@ def split_spectrum_loss(predicted: torch.Tensor, observed: torch.Tensor, *, fit_
     if fit_gain:
         with torch.no_grad():
             gain = (p.conj() * o).sum().real.clamp(min=0) / (p.abs() ** 2).sum().clamp(min=tiny)
-    return ((gain * p - o).abs() ** 2).sum() / (o.abs() ** 2).sum().clamp(min=tiny)
+    return _relative((gain * p - o).abs() ** 2, o.abs() ** 2, per_voxel)
 
 
 split_spectrum_loss.uses_phase = True

@@ -223,7 +223,9 @@ class SurfaceLosses:
         amplitude = self.renderer.observed.abs()
         self.voxels = (amplitude > 0.02).any(0).nonzero().squeeze(1)
 
-    def __call__(self, sdf) -> dict[str, float]:
+    def __call__(self, sdf, *, per_voxel: bool = False) -> dict[str, float] | dict[str, torch.Tensor]:
+        """Each loss of the surface ``sdf``; ``per_voxel``: each shown voxel's share of it, (X,)
+        over ``self.voxels`` (the data losses' ``per_voxel``)."""
         renderer = self.renderer
         with torch.no_grad():
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
@@ -233,8 +235,10 @@ class SurfaceLosses:
                               probabilities=probabilities, bands=True) * (self.gain / renderer.observed_peak)
         images = {True: halves, False: renderer.full_band(halves)}  # one rendering for every loss
         observed = {False: renderer.observed[:, self.voxels], True: renderer.band_observed[:, :, self.voxels]}
-        return {name: float(DATA_LOSSES.get(name)(images[name == "split"], observed[name == "split"], fit_gain=False))
-                for name in ("amplitude", "complex", "split")}
+        losses = {name: DATA_LOSSES.get(name)(images[name == "split"], observed[name == "split"], fit_gain=False,
+                                              per_voxel=per_voxel)
+                  for name in ("amplitude", "complex", "split")}
+        return losses if per_voxel else {name: float(value) for name, value in losses.items()}
 
 
 def plot(result: Result, path) -> None:
