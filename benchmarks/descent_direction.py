@@ -9,7 +9,7 @@ correction the truth needs there: their cosine, the share of the knots (weighted
 where the two agree in sign (0.5: no better than a coin), and the loss after steps along the
 gradient (its largest knot moved 0.25, 0.5, 1 mm).
 
-Usage: python benchmarks/descent_direction.py [--errors-mm 0.5,1] [--knot-m 0.015] [--out FILE]
+Usage: python benchmarks/descent_direction.py [--errors-mm 0.5,1] [--knot-m 0.015] [--radar near-77g] [--out FILE]
 """
 
 from __future__ import annotations
@@ -21,13 +21,9 @@ from pathlib import Path
 import torch
 
 from rfsdf.field import KnotDisplacement
-from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.materials import MATERIAL_CLASSES
-from rfsdf.radar import load_radar, simulate
 from rfsdf.radar.simulate import SIMULATED_GAIN
-from rfsdf.recon import Problem, ReconConfig
-from rfsdf.scene import load_scene
 from rfsdf.studies import basin
 
 LOSSES = ("amplitude", "split", "complex")
@@ -82,16 +78,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--errors-mm", default="0.5,1")
     parser.add_argument("--knot-m", type=float, default=0.015)
+    parser.add_argument("--radar", default=basin.Settings.radar)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/descent-direction.json"))
     args = parser.parse_args()
-    settings = basin.Settings(device="cpu")
-    scene = load_scene(settings.scene)
-    data = simulate(scene, load_radar(settings.radar), seed=settings.seed)
-    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    known = basin.TrueMaterials(scene)
-    problem = Problem(data, grid, gain=SIMULATED_GAIN, known_materials=known)
-    config = ReconConfig.model_validate({"render": {"element_step": settings.element_step}, "train": {"device": "cpu"}})
-    losses = basin.SurfaceLosses(problem, config, known)
+    settings = basin.Settings(device="cpu", radar=args.radar)
+    scene, losses = basin.surface_losses(settings)
+    known = losses.known
     error_field = basin.smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(0))
     rows = []
     for error_mm in (float(e) for e in args.errors_mm.split(",")):

@@ -11,7 +11,7 @@ there summed with the weights w; the knot takes the offset of the lowest sum. Th
 the surface held at the start (a search's first sweep) or at the truth (the best a sweep
 could hope for): how far the chosen offsets lie from the truth's, against the start's error.
 
-Usage: python benchmarks/knot_search.py [--error-mm 2] [--span-mm 4] [--knots 30] [--out FILE]
+Usage: python benchmarks/knot_search.py [--error-mm 2] [--span-mm 4] [--knots 30] [--radar near-77g] [--out FILE]
 """
 
 from __future__ import annotations
@@ -24,14 +24,9 @@ import numpy as np
 import torch
 
 from rfsdf.field import KnotDisplacement
-from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.materials import MATERIAL_CLASSES, mixture_fresnel
-from rfsdf.radar import load_radar, simulate
-from rfsdf.radar.simulate import SIMULATED_GAIN
-from rfsdf.recon import Problem, ReconConfig
 from rfsdf.recon.losses import DATA_LOSSES
-from rfsdf.scene import load_scene
 from rfsdf.studies import basin
 
 STEP_MM = 0.5
@@ -44,16 +39,11 @@ def main() -> None:
     parser.add_argument("--span-mm", type=float, default=4.0)
     parser.add_argument("--knots", type=int, default=30)
     parser.add_argument("--knot-m", type=float, default=0.015)
+    parser.add_argument("--radar", default=basin.Settings.radar)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/knot-search.json"))
     args = parser.parse_args()
-    settings = basin.Settings(device="cpu")
-    scene = load_scene(settings.scene)
-    data = simulate(scene, load_radar(settings.radar), seed=settings.seed)
-    known = basin.TrueMaterials(scene)
-    problem = Problem(data, Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m), gain=SIMULATED_GAIN,
-                      known_materials=known)
-    config = ReconConfig.model_validate({"render": {"element_step": settings.element_step}, "train": {"device": "cpu"}})
-    losses = basin.SurfaceLosses(problem, config, known)
+    settings = basin.Settings(device="cpu", radar=args.radar)
+    scene, losses = basin.surface_losses(settings)
     knots = KnotDisplacement(scene.lower_m, scene.upper_m, args.knot_m)
     field = basin.smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(settings.seed))
     with torch.no_grad():  # the correction the truth needs at each knot; the start is the truth minus it

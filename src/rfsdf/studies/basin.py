@@ -184,6 +184,21 @@ def run(settings: Settings) -> Result:
     return Result(**{**result.__dict__, "seconds": time.perf_counter() - clock})
 
 
+def surface_losses(settings: Settings) -> tuple[object, SurfaceLosses]:
+    """The settings' scene and the :class:`SurfaceLosses` of any surface against its simulated
+    data (every material and the radar's gain known), rendered as the settings' fits render."""
+    scene = load_scene(settings.scene)
+    radar = small_radar() if settings.radar == "small" else load_radar(settings.radar)
+    device = resolve_device(settings.device, "device")
+    known = TrueMaterials(scene)
+    problem = Problem(simulate(scene, radar, seed=settings.seed, device=device),
+                      Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m), gain=SIMULATED_GAIN,
+                      known_materials=known)
+    config = ReconConfig.model_validate({"render": {"element_step": settings.element_step},
+                                         "train": {"device": str(device)}})
+    return scene, SurfaceLosses(problem, config, known)
+
+
 def _per_object_mm(metrics) -> dict[str, float]:
     """Each object's Chamfer-L1 [mm] (None where no fitted surface lies nearest to it)."""
     return {name: value.chamfer_l1_mm for name, value in metrics.objects.items()}
