@@ -65,9 +65,11 @@ def tiny_files(tmp_path):
     return tmp_path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():
-    """A headless Chromium driven by Playwright; skips, saying why, where none can start.
+    """A headless Chromium driven by Playwright, closed after its module's tests (left open it
+    idled at about 8 % of a core through the rest of the suite); skips, saying why, where none
+    can start.
 
     The set-up (`make test`) installs Debian's chromium. SwiftShader draws WebGL on the CPU."""
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (pip install -e '.[test]')")
