@@ -7,7 +7,7 @@ formed, and so that reconstruction can compare view by view.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -80,12 +80,21 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
 
     ``method``: "exact" (the sensing operator's adjoint), "fast" (range-profile
     back-projection, :mod:`rfsdf.radar.fast_imaging`, relative error ~1e-3 at the default
-    ``oversampling``; CPU) or "auto" (:func:`imaging_method`). ``device``: where the exact
-    adjoint runs (None: CPU); the image comes back on the CPU. A planar raster scan images
-    faster by FFT (:func:`rfsdf.radar.scan_imaging.scan_views_matched_filter`).
+    ``oversampling``; CPU) or "auto" (:func:`imaging_method`; views that are planar raster
+    scans whose lattice the grid's voxels lie on by FFT instead,
+    :func:`rfsdf.radar.scan_imaging.scan_views_matched_filter`, the exact adjoint to 1e-4 at a
+    fraction of its cost). ``device``: where the adjoint runs (None: CPU); the image comes back
+    on the CPU.
     """
     acq = measurements.acquisition
     require_image_memory(acq.num_views, grid)
+    if method == "auto" and acq.scans is not None:
+        from .scan_imaging import scan_views_matched_filter  # that module builds on this one
+
+        try:
+            return scan_views_matched_filter(measurements, grid, device=device)
+        except ValueError:  # no raster, or the grid is not on its lattice: back-projection
+            pass
     points = grid.points(device=device)
     fast = imaging_method(acq, method, device) == "fast"
     if acq.scans is None:
@@ -99,32 +108,38 @@ def matched_filter(measurements: Measurements, grid: Grid, *, method: str = "aut
 
 
 def view_correlation(measurements: Measurements, view: int, points: torch.Tensor, *, method: str = "auto",
-                     oversampling: int = DEFAULT_OVERSAMPLING, advance_m: float = 0.0) -> torch.Tensor:
+                     oversampling: int = DEFAULT_OVERSAMPLING, advance_m: float = 0.0,
+                     frames: torch.Tensor | None = None) -> torch.Tensor:
     """(Q,) float: |A_q^H y| / ||A_q|| of view ``view`` alone (a frame, or a scan's frames
     summed coherently) at any ``points`` (Q, 3) [m], not only a grid's voxels; ``method`` as in
     :func:`matched_filter`. The matched filter over the column's norm, not its square as in
     c_hat: by Cauchy-Schwarz a point target's is largest exactly at the point, where |c_hat|
     peaks further from the array (the norm falls with the spreading). ``advance_m`` [m]: the
     view's data advanced by this path first (every element's return made earlier by it, a
-    delay taken out)."""
+    delay taken out). ``frames``: of a scan, only these of its frames (indices (n,) into
+    ``acquisition.frames(view)``: a sub-aperture); None: all."""
     fast = imaging_method(measurements.acquisition, method, points.device) == "fast"
-    numerator, norms = _one_view(measurements, view, points, fast, oversampling, advance_m)
+    numerator, norms = _one_view(measurements, view, points, fast, oversampling, advance_m, frames)
     return safe_divide(numerator.abs(), norms.sqrt()).reshape(-1)
 
 
 def _one_view(measurements: Measurements, view: int, points: torch.Tensor, fast: bool,
-              oversampling: int, advance_m: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+              oversampling: int, advance_m: float = 0.0,
+              subset: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """A_v^H y_v and ||A_v||^2 of view ``view`` at ``points``, each (Q,) or (1, Q), y_v advanced
-    by ``advance_m`` [m] of path."""
+    by ``advance_m`` [m] of path; of a scan, only its frames ``subset`` (None: all)."""
     acq = measurements.acquisition
-    frames = slice(view, view + 1) if acq.scans is None else acq.frames(view)
+    if acq.scans is None:
+        frames = slice(view, view + 1)
+    else:
+        frames = acq.frames(view) if subset is None else acq.frames(view)[subset]
     data = measurements.data[frames]
     if advance_m:
         phase = 2 * torch.pi * acq.frequencies_hz.double() * advance_m / SPEED_OF_LIGHT
         data = data * torch.polar(torch.ones_like(phase), phase).to(data)
     if acq.scans is None:
         return _back_projection(acq.view(view), data, points, fast, oversampling, True, False)
-    return _back_projection(acq.coherent_view(view), data, points, fast, oversampling, False, False)
+    return _back_projection(replace(acq.view(frames), scans=None), data, points, fast, oversampling, False, False)
 
 
 def _back_projection(acq: Acquisition, data: torch.Tensor, points: torch.Tensor, fast: bool, oversampling: int,

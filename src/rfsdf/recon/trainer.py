@@ -30,6 +30,7 @@ from ..geometry import Grid
 from ..progress import progress_bar
 from ..radar import Measurements, matched_filter
 from ..radar.clean import CleanResult, clean_image
+from ..radar.imaging import Image
 from ..radar.range_peaks import range_peaks
 from ..radar.specular import specular_normals
 from ..scene import Scene
@@ -47,8 +48,9 @@ __all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "initial_field"]
 @dataclass(frozen=True)
 class Problem:
     """What the fit sees: the measurements, the voxel grid of its images, where the data
-    came from (a file name, for messages), and optionally their CLEAN of that grid, when
-    the caller has it already (else the warm start computes it).
+    came from (a file name, for messages), and optionally their matched-filter ``image`` or
+    their ``clean`` of that grid, when the caller has them already (else the warm start
+    computes the one its method needs).
 
     ``gain``: the radar gain from the renderer's amplitudes to the data's, when known: 1 for
     data rfsdf simulated (the renderer is the simulator's physics), a calibrated value for a
@@ -66,6 +68,7 @@ class Problem:
     grid: Grid
     source: str = "measurements"
     clean: CleanResult | None = None
+    image: Image | None = None
     gain: float | None = None
     material_labels: Callable[[torch.Tensor], torch.Tensor] | None = None
     known_materials: Callable[[torch.Tensor], torch.Tensor] | None = None
@@ -231,12 +234,12 @@ class Trainer:
         if ic.method == "clean":
             clean = self.problem.clean or clean_image(self.problem.measurements, grid, device=self.device,
                                                       progress=self.progress)
-            power = clean.power.numpy()
-        else:
-            power = (self.observed**2).mean(0).reshape(grid.shape).cpu().numpy()
+            per_view = clean.per_view_power.numpy()
+        else:  # every frame and frequency, not the renderer's thinned data
+            image = self.problem.image or matched_filter(self.problem.measurements, grid, device=self.device)
+            per_view = (image.per_view.abs() ** 2).numpy()
+        power = per_view.mean(0)
         threshold = detection_threshold(ic.threshold, clean)
-        per_view = (clean.per_view_power if clean is not None else (self.observed**2).reshape(-1, *grid.shape))
-        per_view = per_view.cpu().numpy()
         acquisition = self.problem.measurements.acquisition
         matched = None
         if clean is not None and ic.sidelobes_in_mf:  # every Tx and Rx, as CLEAN's own images
