@@ -1,5 +1,6 @@
 # Two entry points, each of which sets everything up first (idempotent):
 #   make demo   -> venv + install + `rfsdf demo`
+#   make demo-sar -> the same on GeRaF's scanned set-up (`rfsdf demo --radar sar-77g`)
 #   make test   -> venv + install + the test suite (which builds the docs too)
 #   make docs   -> the documentation site in site/
 PYTHON ?= python3
@@ -9,7 +10,7 @@ STAMP  := $(VENV)/.installed
 
 BROWSER := $(VENV)/.browser
 
-.PHONY: setup demo test docs bench
+.PHONY: setup demo demo-sar test docs bench
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +33,9 @@ setup: $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/rfsdf demo
+
+demo-sar: $(STAMP)
+	$(BIN)/rfsdf demo --radar sar-77g --out rfsdf-demo-sar
 
 test: $(STAMP) $(BROWSER)
 	$(BIN)/python -m pytest

@@ -15,7 +15,7 @@ import torch
 from rfsdf.errors import RfsdfError
 from rfsdf.geometry import Grid
 from rfsdf.radar import load_radar, matched_filter, read_measurements, write_measurements
-from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Measurements
+from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.operator import SensingOperator
@@ -132,8 +132,13 @@ def test_a_scans_image_is_the_coherent_sum_of_its_frames_by_every_method(small_s
     assert float((fast.per_view - exact.per_view).norm() / exact.per_view.norm()) < 1e-2
     by_fft = scan_views_matched_filter(data, grid)
     assert float((by_fft.per_view - exact.per_view).norm() / exact.per_view.norm()) < 1e-4
+    assert torch.equal(matched_filter(data, grid).per_view, by_fft.per_view)  # "auto" takes the FFT where it can
+    off_lattice = Grid((-0.03,) * 3, (0.03,) * 3, (10, 10, 10))
     with pytest.raises(ValueError, match="does not put its lattice on the grid"):
-        scan_views_matched_filter(data, Grid((-0.03,) * 3, (0.03,) * 3, (10, 10, 10)))
+        scan_views_matched_filter(data, off_lattice)
+    auto = matched_filter(data, off_lattice)  # ... and back-projects where it cannot
+    assert torch.allclose(auto.per_view, matched_filter(data, off_lattice, method="exact").per_view, rtol=1e-4,
+                          atol=1e-4 * float(auto.per_view.abs().max()))
 
 
 def _half_power_width(values: np.ndarray, step: float) -> float:
@@ -240,3 +245,74 @@ def test_the_renderer_keeps_every_nth_frequency_where_the_range_stays_unambiguou
     measurements = Measurements(near.acquisition(), torch.zeros(near.acquisition().shape, dtype=torch.complex64))
     with pytest.raises(ValueError, match="frequency_step 2: the unambiguous path length 0.6 m is shorter than"):
         CoherentRenderer(measurements, Grid((-0.15,) * 3, (0.15,) * 3, (8,) * 3), frequency_step=2)
+
+
+def _mirror_scan(depth_m: float, positions: int = 15, step_m: float = 0.003) -> Measurements:
+    """A board (Tx, one Rx 5 mm along x) over a raster in z = 0 facing a metal plane at
+    z = ``depth_m``: each frame's return is its Rx mirrored in the plane seen from its Tx
+    (image theory, no quadrature), 32 frequencies over 3 GHz, one scan."""
+    lateral = (np.arange(positions) - (positions - 1) / 2) * step_m
+    grid_xy = np.array([[x, y, 0.0] for x in lateral for y in lateral])
+    tx = torch.tensor(grid_xy)[:, None]
+    rx = torch.tensor(grid_xy + [0.005, 0.0, 0.0])[:, None]
+    frequencies = torch.linspace(77.5e9, 80.5e9, 32, dtype=torch.float64)
+    acq = Acquisition(tx, rx, frequencies, torch.tensor([[0.0, 0.0, 1.0]] * len(grid_xy), dtype=torch.float64),
+                      scans=torch.zeros(len(grid_xy), dtype=torch.int64))
+    mirrored = rx.clone()
+    mirrored[..., 2] = 2 * depth_m - mirrored[..., 2]
+    path = (tx - mirrored).norm(dim=-1)[..., None]  # (F, 1, 1)
+    data = torch.exp(-2j * np.pi * frequencies * path / SPEED_OF_LIGHT) / path**2
+    return Measurements(acq, data[:, :, None, :].to(torch.complex64))
+
+
+def test_a_scan_places_a_face_it_sees_specularly_on_the_sub_aperture_before_it():
+    """A plane facing a scan returns to every frame from the frame's own foot on it: no
+    point, a wave focused far behind it. The whole scan's correlation along the normal peaks
+    millimetres behind the plane; the range peaks, each line on the frames within
+    sqrt(lambda D / 16) of it (and by the exact adjoint), within 0.2 mm of it, and search
+    along the raster's normal."""
+    from rfsdf.radar.imaging import view_correlation
+    from rfsdf.radar.range_peaks import range_peaks
+
+    depth = 0.1503  # between the voxel centres
+    data = _mirror_scan(depth)
+    along = np.arange(0.13, 0.18, 0.0005)
+    line = torch.tensor([[0.0, 0.0, z] for z in along])
+    whole = view_correlation(data, 0, line, method="exact").numpy()
+    assert along[whole.argmax()] - depth > 0.005
+    grid = Grid((-0.012, -0.012, 0.12), (0.012, 0.012, 0.18), (6, 6, 15))
+    per_view = (matched_filter(data, grid, method="exact").per_view.abs() ** 2).numpy()
+    peaks = range_peaks(data, per_view, grid, threshold=0.3, local_threshold=0.5, window_m=0.03)
+    assert len(peaks.points) >= 20
+    assert np.abs(peaks.points[:, 2] - depth).max() < 2e-4
+    assert np.allclose(peaks.towards, [0.0, 0.0, -1.0])
+
+
+def test_the_demo_images_a_scanned_radar_on_its_lattice_and_warm_starts_on_its_matched_filter(small_sar, tmp_path):
+    """A radar whose views are scans gets the scanned demo's settings (``SCANNED``, no quick
+    run); a demo of one images each scan by FFT on the raster's lattice, warm-starts on that
+    matched filter without CLEAN and scores the matched filter's detection beside its
+    threshold, and its report reads those baselines."""
+    from click.testing import CliRunner
+
+    from rfsdf.cli import main
+    from rfsdf.config import merge_tables
+    from rfsdf.demo import QUICK, SCANNED, demo_grid, demo_settings, run_demo
+    from rfsdf.report import write_report
+
+    path = tmp_path / "small-sar.toml"
+    assert demo_settings("sar-77g") == SCANNED and demo_settings(str(path)).radar == str(path)
+    assert demo_settings("near-77g", quick=True) == QUICK
+    refused = CliRunner().invoke(main, ["demo", "--quick", "--radar", str(path), "--out", str(tmp_path / "q")])
+    assert refused.exit_code == 2 and refused.output.count("\n") == 1 and "has no --quick demo" in refused.output
+    acquisition = small_sar.acquisition()
+    assert demo_grid((-0.03,) * 3, (0.03,) * 3, acquisition, 0.01) == lattice_grid(acquisition, (-0.03,) * 3, (0.03,) * 3)
+    settings = dataclasses.replace(QUICK, scene="sphere", radar=str(path), voxel_m=0.004,
+                                   recon=merge_tables(QUICK.recon, {"init": SCANNED.recon["init"],
+                                                                    "render": {"element_step": 2, "frequency_step": 2}}))
+    result = run_demo(tmp_path / "demo", settings, log=lambda _: None, progress=False)
+    assert set(result.methods) == {"neural", "neural_warm_start", "mf_threshold", "mf_detection"}
+    assert result.voxel_mm == pytest.approx(4.0) and "clean_s" not in result.timings_s
+    assert not (tmp_path / "demo" / "clean-mip.png").exists() and (tmp_path / "demo" / "mf-detection.ply").exists()
+    assert all(np.isfinite(m.metrics.full.chamfer_l1_mm) for m in result.methods.values())
+    assert "MF detection" in write_report(tmp_path / "demo").read_text()

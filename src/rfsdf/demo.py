@@ -6,10 +6,12 @@ against the truth and against the baselines, and picture every stage.
     demo-settings.json                 the settings this folder holds a run of
     measurements.h5, image.h5          the data and its matched-filter image
     scene-slices.png, image-mip.png    the true SDF; MF power projections
-    clean-mip.png                      CLEAN power projections (the warm start's image)
+    clean-mip.png                      CLEAN power projections (the warm start's image; not
+                                       with a matched-filter warm start, as ``SCANNED``'s)
     run/                               the fit: checkpoint.pt, log.csv, config.toml
     neural.ply, neural-warm-start.ply  the GeRaF reconstruction, and its field before the fit
-    mf-threshold.ply, clean-threshold.ply, clean-detection.ply    the baselines
+    mf-threshold.ply, clean-threshold.ply, clean-detection.ply    the baselines (with a
+                                       matched-filter warm start mf-threshold.ply, mf-detection.ply)
     recon-slices.png, training.png     neural SDF against the truth; loss curves
     metrics.json                       metrics of every method (full, observed surface,
                                        per object), the baselines' sweeps, stage timings
@@ -52,6 +54,7 @@ from .radar import (
 from .radar.clean import MAX_COMPONENTS, clean_image
 from .radar.coverage import observed_mask
 from .radar.imaging import require_image_memory
+from .radar.scan_imaging import lattice_grid
 from .radar.simulate import SAMPLES_PER_WAVELENGTH
 from .recon import Problem, ReconConfig, Trainer
 from .recon.calibration import check_reference
@@ -59,13 +62,14 @@ from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images",
+__all__ = ["DemoSettings", "QUICK", "SCANNED", "demo_settings", "demo_grid", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images",
            "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
 
 
 @dataclass(frozen=True)
 class DemoSettings:
-    """What the demo runs: the default is the README's demo; ``QUICK`` is a seconds-long smoke run."""
+    """What the demo runs: the default is the README's demo; ``QUICK`` is a seconds-long smoke
+    run; ``SCANNED`` the demo of a radar whose views are raster scans (preset ``sar-77g``)."""
 
     scene: str = "objects"
     radar: str = "near-77g"
@@ -99,6 +103,43 @@ QUICK = DemoSettings(
            "sampling": {"data_batch": 1024, "eikonal_batch": 512, "views_per_step": 2},
            "train": {"steps": 6, "checkpoint_every": 3}},
 )
+
+
+# GeRaF's acquisition (preset sar-77g: an IWR1443 over a 33 x 33 raster at four turntable
+# angles) on hand-sized objects: each scan imaged by FFT on its raster's lattice (voxels of
+# its 3 mm step); the warm start on that matched filter (CLEAN of 4356 frames is slow, and its
+# point components suit no 5 cm range cell of a scan: docs/guide/radar.md, "Scanned views"),
+# its range peaks each on the sub-aperture before it; the fit on every 16th frame and every
+# 4th frequency (68 frames a scan, 16 frequencies over the same band)
+SCANNED = DemoSettings(
+    scene="handheld", radar="sar-77g", voxel_m=0.003,
+    recon={"init": {"method": "mf", "threshold": 0.1},
+           "render": {"element_step": 4, "frequency_step": 4},
+           "train": {"steps": 40}},
+)
+
+
+def demo_settings(radar_name: str, *, quick: bool = False) -> DemoSettings:
+    """The demo's settings for the radar ``radar_name`` (a preset or file): ``SCANNED``'s where
+    its views are raster scans, else the default (``QUICK`` with ``quick``; a scanned radar has
+    no quick run: its scans are what take the time)."""
+    if load_radar(radar_name).acquisition().scans is not None:
+        if quick:
+            raise RfsdfError(f"{radar_name}: a radar whose views are scans has no --quick demo")
+        return dataclasses.replace(SCANNED, radar=radar_name)
+    return dataclasses.replace(QUICK if quick else DemoSettings(), radar=radar_name)
+
+
+def demo_grid(lower_m, upper_m, acquisition, voxel_m: float) -> Grid:
+    """The demo's image grid over the box [lower_m, upper_m]: voxels of ``voxel_m`` [m], or
+    where the views are planar raster scans, voxels of their step on their lattice (imaged by
+    FFT, :func:`~rfsdf.radar.scan_imaging.lattice_grid`)."""
+    if acquisition.scans is not None:
+        try:
+            return lattice_grid(acquisition, lower_m, upper_m)
+        except ValueError:  # scans that are no raster: back-projection on the plain grid
+            pass
+    return Grid.from_voxel(lower_m, upper_m, voxel_m)
 
 
 @dataclass(frozen=True)
@@ -246,8 +287,9 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
         write_measurements(out / "measurements.h5", measurements)
     lap("simulate_s")
 
-    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
-    log(f"matched filter on {grid.shape} voxels of {settings.voxel_m * 1e3:.1f} mm ({device})")
+    grid = demo_grid(scene.lower_m, scene.upper_m, measurements.acquisition, settings.voxel_m)
+    voxel_mm = float(np.max(grid.voxel_m)) * 1e3
+    log(f"matched filter on {grid.shape} voxels of {voxel_mm:.1f} mm ({device})")
     image = matched_filter(measurements, grid, device=device, progress=progress)
     write_image(out / "image.h5", image)
     mf_power = image.power().numpy()
@@ -255,22 +297,22 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     lap("image_s")
 
     rc = config.render
-    clean = clean_image(measurements, grid, device=device, progress=progress,
-                        max_components=settings.clean_components)
-    clean_power = clean.power.numpy()
-    log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
-        f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
-    plot_mip(clean_power, grid.lower_m, grid.upper_m, out / "clean-mip.png", title="CLEAN power (mean over views)",
-             quantity="CLEAN power")
-    lap("clean_s")
+    clean = None
+    if config.init.method == "clean":
+        clean = clean_image(measurements, grid, device=device, progress=progress,
+                            max_components=settings.clean_components)
+        log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
+            f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
+        plot_mip(clean.power.numpy(), grid.lower_m, grid.upper_m, out / "clean-mip.png",
+                 title="CLEAN power (mean over views)", quantity="CLEAN power")
+        lap("clean_s")
 
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
         f"({config.init.steps} steps) + {config.train.steps} steps")
     reference = None
     if config.calibration.reference is not None:
         reference = scene_reference(scene, config.calibration, measurements.acquisition)
-    problem = Problem(measurements, grid, str(out / "measurements.h5"),
-                      clean=clean if config.init.method == "clean" else None,
+    problem = Problem(measurements, grid, str(out / "measurements.h5"), clean=clean, image=image,
                       gain=settings.gain,
                       known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
     trainer = Trainer(problem, config, out / "run", progress=progress)
@@ -300,8 +342,11 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
         lap("materials_s")
 
     reference = scene.ground_truth_mesh()
-    for name, power, label in (("mf_threshold", mf_power, "MF threshold"),
-                               ("clean_threshold", clean_power, "CLEAN threshold")):
+    # the baselines: each image's best global threshold, and the warm start's detection without the fit
+    thresholded = [("mf_threshold", mf_power, "MF threshold")]
+    if clean is not None:
+        thresholded.append(("clean_threshold", clean.power.numpy(), "CLEAN threshold"))
+    for name, power, label in thresholded:
         best = best_threshold_mesh(power, grid, reference, samples=settings.metric_samples, seed=settings.seed)
         export_mesh(best.mesh, out / f"{name.replace('_', '-')}.ply")
         methods[name] = MethodResult(f"{label} ({best.fraction:g})", score(best.mesh),
@@ -309,11 +354,13 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
                                       "sweep_chamfer_mm": {str(k): v for k, v in best.sweep.items()}})
     ic = config.init
     threshold = detection_threshold(ic.threshold, clean)
-    exclude = excluded_voxels(ic, clean.per_view_power.numpy(), measurements.acquisition, grid, threshold)
-    detected = detection_mesh(clean_power, grid, threshold=threshold, local_threshold=ic.local_threshold,
+    per_view = clean.per_view_power.numpy() if clean is not None else (image.per_view.abs() ** 2).numpy()
+    exclude = excluded_voxels(ic, per_view, measurements.acquisition, grid, threshold)
+    detected = detection_mesh(per_view.mean(0), grid, threshold=threshold, local_threshold=ic.local_threshold,
                               window_m=ic.window_m, exclude=exclude)
-    export_mesh(detected, out / "clean-detection.ply")
-    methods["clean_detection"] = MethodResult("CLEAN detection", score(detected),
+    name, label = ("clean_detection", "CLEAN detection") if clean is not None else ("mf_detection", "MF detection")
+    export_mesh(detected, out / f"{name.replace('_', '-')}.ply")
+    methods[name] = MethodResult(label, score(detected),
                                               {"threshold": threshold, "threshold_setting": ic.threshold,
                                                "local_threshold": ic.local_threshold,
                                                "carve_front": ic.carve_front,
@@ -325,7 +372,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     plot_training_curves([dataclasses.asdict(r) for r in fit.log], out / "training.png", title=f"GeRaF fit ({rc.renderer} renderer)")
     lap("figures_s")
 
-    result = DemoResult(scene.name, radar.name, grid.shape, settings.voxel_m * 1e3, torch.get_num_threads(),
+    result = DemoResult(scene.name, radar.name, grid.shape, voxel_mm, torch.get_num_threads(),
                         len(fit.log), round(fit.seconds_per_step, 3), methods,
                         {**timings, "total_s": round(sum(timings.values()), 2)}, materials)
     write_json(out / "metrics.json", result.as_dict())

@@ -21,8 +21,10 @@ from .app import (
 
 @main.command()
 @click.option("--out", type=click.Path(path_type=Path), default=Path("rfsdf-demo"), show_default=True)
-@click.option("--scene", "scene_name", default="objects", show_default=True, help="Scene preset or TOML file.")
-@click.option("--radar", "radar_name", default="near-77g", show_default=True, help="Radar preset or TOML file.")
+@click.option("--scene", "scene_name", default=None,
+              help="Scene preset or TOML file (default: objects; handheld for a radar whose views are scans).")
+@click.option("--radar", "radar_name", default="near-77g", show_default=True,
+              help="Radar preset or TOML file (sar-77g: GeRaF's scanned set-up, each scan one view).")
 @click.option("--quick", is_flag=True, help="A tiny, seconds-long version (coarse grid, few steps): a smoke test.")
 @click.option("--no-materials", is_flag=True,
               help="Fit a free reflectivity instead of the material head (no material estimates).")
@@ -51,7 +53,7 @@ from .app import (
 @click.option("--max-samples", type=click.IntRange(1, 10**8), default=None,
               help="With --model primitive/hybrid/all: the simulator's facet budget (default 3,000,000; --quick 40,000).")
 @one_line_errors
-def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
+def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
          relative: bool, device: str, model_kind: str, scene_model_path: Path | None, start_offset: float | None,
          seed: int | None, free_materials: bool, max_samples: int | None):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
@@ -63,7 +65,7 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
     """
     import dataclasses
 
-    from ..demo import QUICK, DemoSettings, metrics_table, run_demo
+    from ..demo import demo_settings, metrics_table, run_demo
     from ..config import merge_tables
 
     if relative and reference is not None:
@@ -75,7 +77,7 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
             raise click.UsageError(f"{', '.join(neural_only)}: only with --model neural")
         if free_materials and scene_model_path is not None:
             raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
-        _model_demo(out, scene_name, radar_name, quick, model_kind, scene_model_path,
+        _model_demo(out, scene_name or "objects", radar_name, quick, model_kind, scene_model_path,
                     0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples, device)
         return
     given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
@@ -83,8 +85,8 @@ def demo(out: Path, scene_name: str, radar_name: str, quick: bool, no_materials:
                                       ("--max-samples", max_samples)) if value is not None]
     if given:
         raise click.UsageError(f"{', '.join(given)}: only with --model primitive, hybrid or all")
-    settings = dataclasses.replace(QUICK if quick else DemoSettings(), scene=scene_name, radar=radar_name,
-                                   relative=relative)
+    settings = demo_settings(radar_name, quick=quick)
+    settings = dataclasses.replace(settings, scene=scene_name or settings.scene, relative=relative)
     if no_materials:
         settings = dataclasses.replace(settings, recon=merge_tables(settings.recon, {"field": {"materials": []}}))
     if reference is not None:
