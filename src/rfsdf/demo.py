@@ -399,7 +399,7 @@ def metrics_rows(result: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
     result as written to metrics.json (``DemoResult.as_dict()``): full surface, observed
     surface, then the recall of each object by name."""
     methods = list(result["methods"].values())
-    rows = [(label, [_cell((m if part is None else m[part] or {}).get(key), fmt) for m in methods])
+    rows = [(label, [_cell((m if part is None else m.get(part) or {}).get(key), fmt) for m in methods])
             for label, part, key, fmt in _ROWS]
     rows += [(f"recall {name}", [_cell(m["objects"][name]["recall"], ".2f") for m in methods])
              for name in methods[0]["objects"]]
