@@ -107,9 +107,9 @@ QUICK = DemoSettings(
 
 # GeRaF's acquisition (preset sar-77g: an IWR1443 over a 33 x 33 raster at four turntable
 # angles) on hand-sized objects: each scan imaged by FFT on its raster's lattice (voxels of
-# its 3 mm step); the warm start on that matched filter (CLEAN of 4356 frames is slow, and its
-# point components suit no 5 cm range cell of a scan: docs/guide/radar.md, "Scanned views"),
-# its range peaks each on the sub-aperture before it; the fit on every 16th frame and every
+# its 3 mm step); the warm start on that matched filter (CLEAN of the 4356 frames had not
+# ended after 20 minutes on 2 cores: docs/guide/radar.md, "Scanned views"), its range peaks
+# each on the sub-aperture before it; the fit on every 16th frame and every
 # 4th frequency (68 frames a scan, 16 frequencies over the same band)
 SCANNED = DemoSettings(
     scene="handheld", radar="sar-77g", voxel_m=0.003,
