@@ -62,8 +62,8 @@ from .recon.warm_start import detection_threshold, excluded_voxels
 from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
-__all__ = ["DemoSettings", "QUICK", "SCANNED", "demo_settings", "demo_grid", "SceneAndRadar", "load_scene_and_radar", "claim_folder", "require_demo_images",
-           "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
+__all__ = ["DemoSettings", "QUICK", "SCANNED", "demo_settings", "demo_grid", "SceneAndRadar", "load_scene_and_radar",
+           "claim_folder", "require_demo_images", "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
 
 
 @dataclass(frozen=True)
@@ -361,10 +361,10 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     name, label = ("clean_detection", "CLEAN detection") if clean is not None else ("mf_detection", "MF detection")
     export_mesh(detected, out / f"{name.replace('_', '-')}.ply")
     methods[name] = MethodResult(label, score(detected),
-                                              {"threshold": threshold, "threshold_setting": ic.threshold,
-                                               "local_threshold": ic.local_threshold,
-                                               "carve_front": ic.carve_front,
-                                               "blank_range_sidelobes": ic.blank_range_sidelobes})
+                                 {"threshold": threshold, "threshold_setting": ic.threshold,
+                                  "local_threshold": ic.local_threshold,
+                                  "carve_front": ic.carve_front,
+                                  "blank_range_sidelobes": ic.blank_range_sidelobes})
     lap("baselines_s")
 
     plot_sdf_slices(fit.field.cpu().sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,

@@ -129,17 +129,16 @@ def _one_view(measurements: Measurements, view: int, points: torch.Tensor, fast:
     """A_v^H y_v and ||A_v||^2 of view ``view`` at ``points``, each (Q,) or (1, Q), y_v advanced
     by ``advance_m`` [m] of path; of a scan, only its frames ``subset`` (None: all)."""
     acq = measurements.acquisition
-    if acq.scans is None:
-        frames = slice(view, view + 1)
-    else:
+    if acq.scans is None:  # a frame, its own view
+        frames, view_acq, per_frame = slice(view, view + 1), acq.view(view), True
+    else:  # a scan's frames (or those of ``subset``) summed as one view
         frames = acq.frames(view) if subset is None else acq.frames(view)[subset]
+        view_acq, per_frame = replace(acq.view(frames), scans=None), False
     data = measurements.data[frames]
     if advance_m:
         phase = 2 * torch.pi * acq.frequencies_hz.double() * advance_m / SPEED_OF_LIGHT
         data = data * torch.polar(torch.ones_like(phase), phase).to(data)
-    if acq.scans is None:
-        return _back_projection(acq.view(view), data, points, fast, oversampling, True, False)
-    return _back_projection(replace(acq.view(frames), scans=None), data, points, fast, oversampling, False, False)
+    return _back_projection(view_acq, data, points, fast, oversampling, per_frame, False)
 
 
 def _back_projection(acq: Acquisition, data: torch.Tensor, points: torch.Tensor, fast: bool, oversampling: int,
