@@ -16,6 +16,7 @@ from rfsdf.errors import RfsdfError
 from rfsdf.geometry import Grid
 from rfsdf.radar import load_radar, matched_filter, read_measurements, write_measurements
 from rfsdf.radar.acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
+import rfsdf.radar.clean as clean_module
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.operator import SensingOperator
@@ -227,6 +228,24 @@ def test_clean_and_the_observed_surface_take_a_scan_as_one_view(small_sar):
     assert bool(seen[facing > 0.99].all()) and not bool(seen[facing < 0].any())
 
 
+def test_clean_of_a_scan_on_its_lattice_finds_what_the_exact_operator_does(small_sar, monkeypatch):
+    """On a grid on the scans' lattice, CLEAN images every component of a scan by FFT, its
+    kernels' spectra kept (``ScanLattice``): the same components, amplitudes and residual as
+    the exact operator's point responses and back-projections, its slow reference."""
+    data = simulate(load_scene("sphere"), dataclasses.replace(small_sar, snr_db=None))
+    grid = lattice_grid(data.acquisition, (-0.03,) * 3, (0.03,) * 3)
+    assert all(clean_module._scan_lattice(data, view, grid, None) is not None for view in range(2))
+    options = {"method": "exact", "max_components": 12, "major_every": 5}
+    lattice = clean_image(data, grid, **options)
+    monkeypatch.setattr(clean_module, "_scan_lattice", lambda *args: None)
+    exact = clean_image(data, grid, **options)
+    for view in range(2):
+        assert torch.equal(lattice.component_index[view], exact.component_index[view])
+        assert torch.allclose(lattice.component_amplitude[view], exact.component_amplitude[view], rtol=1e-4)
+        scale = float(exact.residual[view].abs().max())
+        assert float((lattice.residual[view] - exact.residual[view]).abs().max()) < 1e-4 * scale
+
+
 def test_the_renderer_keeps_every_nth_frequency_where_the_range_stays_unambiguous(small_sar):
     """Every 2nd of 8 frequencies 47 MHz apart: the same band, 3.2 m -> 1.6 m of unambiguous
     path, still longer than the grid's; the prediction at the truth still matches the data.
@@ -291,8 +310,8 @@ def test_a_scan_places_a_face_it_sees_specularly_on_the_sub_aperture_before_it()
 def test_the_demo_images_a_scanned_radar_on_its_lattice_and_warm_starts_on_its_matched_filter(small_sar, tmp_path):
     """A radar whose views are scans gets the scanned demo's settings (``SCANNED``, no quick
     run); a demo of one images each scan by FFT on the raster's lattice, warm-starts on that
-    matched filter without CLEAN and scores the matched filter's detection beside its
-    threshold, and its report reads those baselines."""
+    matched filter, scores the default demo's baselines (CLEAN's on the lattice too) and the
+    matched filter's detection, and its report reads them."""
     from click.testing import CliRunner
 
     from rfsdf.cli import main
@@ -311,8 +330,10 @@ def test_the_demo_images_a_scanned_radar_on_its_lattice_and_warm_starts_on_its_m
                                    recon=merge_tables(QUICK.recon, {"init": SCANNED.recon["init"],
                                                                     "render": {"element_step": 2, "frequency_step": 2}}))
     result = run_demo(tmp_path / "demo", settings, log=lambda _: None, progress=False)
-    assert set(result.methods) == {"neural", "neural_warm_start", "mf_threshold", "mf_detection"}
-    assert result.voxel_mm == pytest.approx(4.0) and "clean_s" not in result.timings_s
-    assert not (tmp_path / "demo" / "clean-mip.png").exists() and (tmp_path / "demo" / "mf-detection.ply").exists()
+    assert set(result.methods) == {"neural", "neural_warm_start", "mf_threshold", "clean_threshold", "clean_detection",
+                                   "mf_detection"}
+    assert result.voxel_mm == pytest.approx(4.0) and "clean_s" in result.timings_s
+    assert all((tmp_path / "demo" / name).exists() for name in ("clean-mip.png", "clean-detection.ply", "mf-detection.ply"))
     assert all(np.isfinite(m.metrics.full.chamfer_l1_mm) for m in result.methods.values())
-    assert "MF detection" in write_report(tmp_path / "demo").read_text()
+    report = write_report(tmp_path / "demo").read_text()
+    assert "MF detection" in report and "CLEAN detection" in report

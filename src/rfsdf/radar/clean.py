@@ -10,6 +10,15 @@ whole grid from the residual *data* y - A c, so the far sidelobes outside the wi
 removed exactly too. Stops when the residual peak falls below ``stop_fraction`` of the dirty
 peak, or after ``max_components``.
 
+A view that is a planar scan (``Acquisition.scans``) on a grid on its raster's lattice
+(``rfsdf.radar.scan_imaging.lattice_grid``) takes the same loop with every image by FFT on
+the lattice, the kernels' spectra kept (:class:`~rfsdf.radar.scan_imaging.ScanLattice`): a
+component's point response is the image of its point's data on the window's depth planes,
+exact. On a scan of preset ``sar-77g`` (1089 frames, 43^3 voxels) the first five
+components took 2.5 s against the general path's 140 s, the same components; its four scans
+at 300 components 101 s, where they had not ended after 20 minutes (2 cores,
+``benchmarks/scan_clean.py``).
+
 The cleaned view image is the components restored with a Gaussian beam of one voxel
 (power), plus the residual power; the incoherent mean over views is what a radar engineer
 would threshold. Weak objects under a strong one's sidelobes survive it, where the raw MF
@@ -30,6 +39,7 @@ from .acquisition import Measurements
 from .fast_imaging import fast_adjoint
 from .imaging import imaging_method
 from .operator import SensingOperator
+from .scan_imaging import ScanLattice
 
 __all__ = ["FLOOR_QUANTILE", "MAX_COMPONENTS", "CleanResult", "clean_view", "clean_image"]
 
@@ -92,6 +102,8 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     whole-grid images (dirty and major cycles) use the imaging ``method`` (see
     :func:`~rfsdf.radar.imaging.matched_filter`); the windowed PSFs are exact
     (:meth:`~rfsdf.radar.operator.SensingOperator.point_response`, factorised over Tx and Rx).
+    A scan on ``grid``'s lattice is imaged by :class:`~rfsdf.radar.scan_imaging.ScanLattice`
+    throughout, exactly, whatever ``method``.
     The images live on ``device`` (None: CPU); what is returned is on the CPU.
     """
     if not 0 < gain <= 1:
@@ -100,23 +112,37 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
     acquisition = measured.acquisition
     op = SensingOperator(acquisition)
     fast = imaging_method(acquisition, method, device) == "fast"
+    lattice = _scan_lattice(measurements, view, grid, device)
+    radius = max(1, int(round(window_m / float(np.max(grid.voxel_m)))))
     y = measured.data.to(device)
     voxels = grid.points(device=device)
-    norms = op.column_norms_sq(voxels)
+    norms = op.column_norms_sq(voxels) if lattice is None else lattice.column_norms_sq.to(device)
     seen = norms > 0
     safe = torch.where(seen, norms, torch.ones_like(norms))
 
     def normalised(back_projected, index=slice(None)):  # c_hat = A^H y / ||A||^2, 0 where unseen
         return torch.where(seen[index], back_projected / safe[index], 0.0)
 
-    def image(data):
+    def back_projected(data, planes=slice(None)):  # A^H y on every voxel (of a scan: on its depth planes)
+        if lattice is not None:
+            return lattice.adjoint(data, planes).to(voxels.device)
         if fast:
-            return normalised(fast_adjoint(acquisition, data.cpu(), voxels.cpu(), summed=True)[0].to(voxels.device))
-        return normalised(op.adjoint(data, voxels))
+            return fast_adjoint(acquisition, data.cpu(), voxels.cpu(), summed=True)[0].to(voxels.device)
+        return op.adjoint(data, voxels)
+
+    def image(data):
+        return normalised(back_projected(data))
+
+    def point_response(q, window):  # A^H A e_q on the window's voxels
+        if lattice is None:  # factorised over Tx and Rx
+            return op.point_response(voxels[q], voxels[window])
+        depth = np.unravel_index(q, grid.shape)[lattice.depth_axis]
+        planes = slice(max(0, depth - radius), depth + radius + 1)  # the window's
+        unit = torch.ones(1, dtype=torch.complex64, device=voxels.device)
+        return back_projected(op.forward(voxels[q:q + 1], unit), planes)[window]
 
     residual = image(y)
     stop = stop_fraction * float(residual.abs().max())
-    radius = max(1, int(round(window_m / float(np.max(grid.voxel_m)))))
     indices: list[int] = []
     amplitudes: list[complex] = []
     with torch.no_grad():
@@ -126,7 +152,7 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
                 break
             amplitude = gain * residual[q]
             window = _window(grid, q, radius).to(voxels.device)
-            residual[window] -= amplitude * normalised(op.point_response(voxels[q], voxels[window]), window)
+            residual[window] -= amplitude * normalised(point_response(q, window), window)
             indices.append(q)
             amplitudes.append(complex(amplitude))
             if len(indices) % major_every == 0:
@@ -135,6 +161,17 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
                 c = torch.tensor(amplitudes, dtype=torch.complex64, device=voxels.device)
                 residual = image(y - op.forward(voxels[torch.tensor(indices, device=voxels.device)], c))
     return torch.tensor(indices, dtype=torch.long), torch.tensor(amplitudes, dtype=torch.complex64), residual.cpu()
+
+
+def _scan_lattice(measurements: Measurements, view: int, grid: Grid, device) -> ScanLattice | None:
+    """The lattice imaging of view ``view`` when it is a planar scan (``Acquisition.scans``)
+    whose lattice ``grid``'s voxels lie on, else None (a MIMO frame; a scan on another grid)."""
+    if measurements.acquisition.scans is None:
+        return None
+    try:
+        return ScanLattice(measurements.acquisition.coherent_view(view), grid, device=device)
+    except ValueError:
+        return None
 
 
 def clean_image(measurements: Measurements, grid: Grid, *, progress: bool = False, **options) -> CleanResult:
