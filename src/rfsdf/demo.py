@@ -6,12 +6,12 @@ against the truth and against the baselines, and picture every stage.
     demo-settings.json                 the settings this folder holds a run of
     measurements.h5, image.h5          the data and its matched-filter image
     scene-slices.png, image-mip.png    the true SDF; MF power projections
-    clean-mip.png                      CLEAN power projections (the warm start's image; not
-                                       with a matched-filter warm start, as ``SCANNED``'s)
+    clean-mip.png                      CLEAN power projections (the warm start's image,
+                                       unless it starts on the matched filter, as ``SCANNED``)
     run/                               the fit: checkpoint.pt, log.csv, config.toml
     neural.ply, neural-warm-start.ply  the GeRaF reconstruction, and its field before the fit
     mf-threshold.ply, clean-threshold.ply, clean-detection.ply    the baselines (with a
-                                       matched-filter warm start mf-threshold.ply, mf-detection.ply)
+                                       matched-filter warm start also its mf-detection.ply)
     recon-slices.png, training.png     neural SDF against the truth; loss curves
     metrics.json                       metrics of every method (full, observed surface,
                                        per object), the baselines' sweeps, stage timings
@@ -107,9 +107,9 @@ QUICK = DemoSettings(
 
 # GeRaF's acquisition (preset sar-77g: an IWR1443 over a 33 x 33 raster at four turntable
 # angles) on hand-sized objects: each scan imaged by FFT on its raster's lattice (voxels of
-# its 3 mm step); the warm start on that matched filter (CLEAN of the 4356 frames had not
-# ended after 20 minutes on 2 cores: docs/guide/radar.md, "Scanned views"), its range peaks
-# each on the sub-aperture before it; the fit on every 16th frame and every
+# its 3 mm step); the warm start on that matched filter (on CLEAN's it scored 5.4-5.7 mm
+# against 4.9: docs/guide/radar.md, "Scanned views"), its range peaks each on the
+# sub-aperture before it; the fit on every 16th frame and every
 # 4th frequency (68 frames a scan, 16 frequencies over the same band)
 SCANNED = DemoSettings(
     scene="handheld", radar="sar-77g", voxel_m=0.003,
@@ -297,15 +297,12 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     lap("image_s")
 
     rc = config.render
-    clean = None
-    if config.init.method == "clean":
-        clean = clean_image(measurements, grid, device=device, progress=progress,
-                            max_components=settings.clean_components)
-        log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
-            f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
-        plot_mip(clean.power.numpy(), grid.lower_m, grid.upper_m, out / "clean-mip.png",
-                 title="CLEAN power (mean over views)", quantity="CLEAN power")
-        lap("clean_s")
+    clean = clean_image(measurements, grid, device=device, progress=progress, max_components=settings.clean_components)
+    log(f"CLEAN residual floor {clean.residual_floor():.3f} of the peak amplitude"
+        f"{' (the detection threshold)' if config.init.threshold == 'auto' else ''}")
+    plot_mip(clean.power.numpy(), grid.lower_m, grid.upper_m, out / "clean-mip.png",
+             title="CLEAN power (mean over views)", quantity="CLEAN power")
+    lap("clean_s")
 
     log(f"GeRaF fit: {rc.renderer} renderer, {config.init.method} warm start "
         f"({config.init.steps} steps) + {config.train.steps} steps")
@@ -343,9 +340,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
 
     reference = scene.ground_truth_mesh()
     # the baselines: each image's best global threshold, and the warm start's detection without the fit
-    thresholded = [("mf_threshold", mf_power, "MF threshold")]
-    if clean is not None:
-        thresholded.append(("clean_threshold", clean.power.numpy(), "CLEAN threshold"))
+    thresholded = [("mf_threshold", mf_power, "MF threshold"), ("clean_threshold", clean.power.numpy(), "CLEAN threshold")]
     for name, power, label in thresholded:
         best = best_threshold_mesh(power, grid, reference, samples=settings.metric_samples, seed=settings.seed)
         export_mesh(best.mesh, out / f"{name.replace('_', '-')}.ply")
@@ -353,18 +348,23 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
                                      {"fraction": best.fraction,
                                       "sweep_chamfer_mm": {str(k): v for k, v in best.sweep.items()}})
     ic = config.init
-    threshold = detection_threshold(ic.threshold, clean)
-    per_view = clean.per_view_power.numpy() if clean is not None else (image.per_view.abs() ** 2).numpy()
-    exclude = excluded_voxels(ic, per_view, measurements.acquisition, grid, threshold)
-    detected = detection_mesh(per_view.mean(0), grid, threshold=threshold, local_threshold=ic.local_threshold,
-                              window_m=ic.window_m, exclude=exclude)
-    name, label = ("clean_detection", "CLEAN detection") if clean is not None else ("mf_detection", "MF detection")
-    export_mesh(detected, out / f"{name.replace('_', '-')}.ply")
-    methods[name] = MethodResult(label, score(detected),
-                                 {"threshold": threshold, "threshold_setting": ic.threshold,
-                                  "local_threshold": ic.local_threshold,
-                                  "carve_front": ic.carve_front,
-                                  "blank_range_sidelobes": ic.blank_range_sidelobes})
+    # CLEAN's detection at its own threshold (the residual floor unless the CLEAN warm start
+    # names one); with a matched-filter warm start also that start's detection, without the fit
+    detections = [("clean_detection", "CLEAN detection", clean.per_view_power.numpy(),
+                   ic.threshold if ic.method == "clean" else "auto")]
+    if ic.method == "mf":
+        detections.append(("mf_detection", "MF detection", (image.per_view.abs() ** 2).numpy(), ic.threshold))
+    for name, label, per_view, setting in detections:
+        threshold = detection_threshold(setting, clean)
+        exclude = excluded_voxels(ic, per_view, measurements.acquisition, grid, threshold)
+        detected = detection_mesh(per_view.mean(0), grid, threshold=threshold, local_threshold=ic.local_threshold,
+                                  window_m=ic.window_m, exclude=exclude)
+        export_mesh(detected, out / f"{name.replace('_', '-')}.ply")
+        methods[name] = MethodResult(label, score(detected),
+                                     {"threshold": threshold, "threshold_setting": setting,
+                                      "local_threshold": ic.local_threshold,
+                                      "carve_front": ic.carve_front,
+                                      "blank_range_sidelobes": ic.blank_range_sidelobes})
     lap("baselines_s")
 
     plot_sdf_slices(fit.field.cpu().sdf, scene.lower_m, scene.upper_m, out / "recon-slices.png", reference=scene.sdf,

@@ -53,8 +53,8 @@ __all__ = ["REPORT_NAME", "Section", "write_report", "write_view"]
 
 REPORT_NAME = "report.html"
 _RUN_MESH_RESOLUTION = 96  # marching cubes of a run folder's field when it has no mesh.ply
-# the baselines every demo has; with a CLEAN warm start also "clean_threshold" and
-# "clean_detection", with a matched-filter one "mf_detection"
+# the baseline every demo folder has; those since the thirty-third session also
+# "clean_threshold" and "clean_detection", with a matched-filter warm start "mf_detection"
 _BASELINES = ("mf_threshold",)
 
 
