@@ -237,6 +237,10 @@ def test_clean_of_a_scan_on_its_lattice_finds_what_the_exact_operator_does(small
     assert all(clean_module._scan_lattice(data, view, grid, None) is not None for view in range(2))
     options = {"method": "exact", "max_components": 12, "major_every": 5}
     lattice = clean_image(data, grid, **options)
+    with monkeypatch.context() as short:  # spectra beyond the memory: refused, not hours on the general path
+        short.setattr("rfsdf.limits.available_memory_bytes", lambda: 1e6)
+        with pytest.raises(RfsdfError, match="the kernels' spectra of a 3 x 4 scan on 17 depths need"):
+            clean_image(data, grid, **options)
     monkeypatch.setattr(clean_module, "_scan_lattice", lambda *args: None)
     exact = clean_image(data, grid, **options)
     for view in range(2):

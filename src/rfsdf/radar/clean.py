@@ -33,6 +33,7 @@ import numpy as np
 import torch
 from scipy import ndimage
 
+from ..errors import RfsdfError
 from ..geometry import Grid
 from ..progress import progress_bar
 from .acquisition import Measurements
@@ -165,12 +166,16 @@ def clean_view(measurements: Measurements, view: int, grid: Grid, *, gain: float
 
 def _scan_lattice(measurements: Measurements, view: int, grid: Grid, device) -> ScanLattice | None:
     """The lattice imaging of view ``view`` when it is a planar scan (``Acquisition.scans``)
-    whose lattice ``grid``'s voxels lie on, else None (a MIMO frame; a scan on another grid)."""
+    whose lattice ``grid``'s voxels lie on, else None (a MIMO frame; a scan on another grid).
+    Kernels' spectra beyond the memory stop CLEAN with that error (RfsdfError): the general
+    path would take hours on such a scan."""
     if measurements.acquisition.scans is None:
         return None
     try:
         return ScanLattice(measurements.acquisition.coherent_view(view), grid, device=device)
-    except ValueError:
+    except RfsdfError:
+        raise
+    except ValueError:  # no raster, or not on this grid
         return None
 
 
