@@ -1,0 +1,124 @@
+"""What a demo's observed-surface Chamfer is made of, method by method. The metric
+(`rfsdf.metrics.evaluate_scene`) is half the *accuracy* of every sample of the predicted
+surface (its distance to the nearest true sample, wherever it lies) and half the
+*completeness* of the true surface some view observes. So its accuracy half also scores the
+predicted surface over true faces no view sees, which the data do not constrain. Split here:
+the accuracy by where the predicted sample lies against the true solids (inside one by
+more than ``--band-mm``: a back collapsed into the object or a sheet inside it; within the
+band; outside by more: bloated faces and floaters) and by whether its nearest true sample
+is seen, with each part's share of the samples and of the mean,
+the floaters alone (connected components of the predicted mesh none of whose samples
+comes within ``--floater-mm`` of a true surface), and the completeness of the seen surface by
+object (mean and median). Reads the meshes, settings and measurements a demo folder holds;
+reconstructs nothing.
+
+Usage: python benchmarks/error_anatomy.py DEMO_DIR [--out benchmarks/results/error-anatomy.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from scipy.spatial import cKDTree
+
+from rfsdf.jsonio import to_json
+from rfsdf.radar import read_measurements
+from rfsdf.radar.coverage import observed_mask
+from rfsdf.scene import load_scene
+
+METHODS = ("neural", "neural-warm-start", "clean-detection", "clean-threshold", "mf-threshold")
+SAMPLES = 50_000  # as the demo's metrics, with the same seed: the same samples
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("folder", type=Path)
+    parser.add_argument("--band-mm", type=float, default=2.0)
+    parser.add_argument("--floater-mm", type=float, default=5.0)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/error-anatomy.json"))
+    args = parser.parse_args()
+    settings = json.loads((args.folder / "demo-settings.json").read_text())
+    scene = load_scene(settings["scene"])
+    acquisition = read_measurements(args.folder / "measurements.h5").acquisition
+    truth = TrueSurface(scene, acquisition, seed=settings.get("seed", 0))
+    result = {"folder": str(args.folder), "scene": settings["scene"], "radar": settings["radar"],
+              "band_mm": args.band_mm, "floater_mm": args.floater_mm,
+              "seen_share_of_true_surface": float(truth.seen.mean()), "methods": {}}
+    for method in METHODS:
+        path = args.folder / f"{method}.ply"
+        if path.exists():
+            row = anatomy(trimesh.load(path, force="mesh"), truth, band_m=args.band_mm * 1e-3,
+                          floater_m=args.floater_mm * 1e-3, seed=settings.get("seed", 0))
+            result["methods"][method] = row
+            print(method, to_json({k: row[k] for k in ("observed_chamfer_mm", "accuracy_mm", "completeness_seen_mm",
+                                                       "accuracy_parts_mm")}, indent=None), flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(to_json(result))
+
+
+class TrueSurface:
+    """Area-uniform samples of a scene's objects (as ``evaluate_scene`` draws them), their
+    owner object and whether some view of ``acquisition`` observes them."""
+
+    def __init__(self, scene, acquisition, *, seed: int):
+        meshes = scene.object_meshes()
+        reference = trimesh.util.concatenate(meshes)
+        owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
+        points, faces = trimesh.sample.sample_surface(reference, SAMPLES, seed=seed)
+        self.scene, self.points, self.owner = scene, np.asarray(points), owner_of_face[faces]
+        normals = torch.as_tensor(np.asarray(reference.face_normals[faces]))
+        self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), normals, acquisition, scene.sdf), bool)
+        self.tree = cKDTree(self.points)
+
+    def signed_m(self, points: np.ndarray) -> np.ndarray:
+        """(N,) the scene SDF [m] at ``points`` (N, 3): negative inside an object."""
+        return self.scene.sdf(torch.as_tensor(points, dtype=torch.float64)).double().numpy()
+
+
+def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater_m: float, seed: int) -> dict:
+    """The observed Chamfer of ``mesh`` and its parts [mm] (see the module docstring)."""
+    predicted, faces = trimesh.sample.sample_surface(mesh, SAMPLES, seed=seed)
+    predicted = np.asarray(predicted)
+    accuracy, nearest = truth.tree.query(predicted)
+    completeness, _ = cKDTree(predicted).query(truth.points)
+    signed = truth.signed_m(predicted)
+    parts = {"inside the true solids": signed < -band_m, "within the band": np.abs(signed) <= band_m,
+             "outside the true solids": signed > band_m,
+             "nearest a seen true sample": truth.seen[nearest], "nearest an unseen one": ~truth.seen[nearest]}
+    component_of_face = np.empty(len(mesh.faces), int)
+    for index, face_indices in enumerate(trimesh.graph.connected_components(mesh.face_adjacency,
+                                                                           nodes=np.arange(len(mesh.faces)))):
+        component_of_face[face_indices] = index
+    component = component_of_face[faces]
+    floating = np.isin(component, [c for c in np.unique(component)
+                                   if np.abs(signed[component == c]).min() > floater_m])
+    seen = completeness[truth.seen]
+    objects = {}
+    for index, obj in enumerate(truth.scene.objects):
+        own = completeness[truth.seen & (truth.owner == index)]
+        objects[obj.name] = ({"mean_mm": 1e3 * float(own.mean()), "median_mm": 1e3 * float(np.median(own)),
+                              "seen_samples": len(own)} if len(own) else None)
+    return {
+        "observed_chamfer_mm": 0.5e3 * float(accuracy.mean() + seen.mean()),
+        "accuracy_mm": _summary(accuracy),
+        "completeness_seen_mm": _summary(seen),
+        "accuracy_parts_mm": {name: {"share": float(mask.mean()), "of_the_mean": 1e3 * float(accuracy[mask].sum())
+                                     / len(accuracy)} for name, mask in parts.items()},
+        "floaters": {"share": float(floating.mean()),
+                     "of_the_accuracy_mean_mm": 1e3 * float(accuracy[floating].sum()) / len(accuracy)},
+        "completeness_seen_by_object": objects,
+    }
+
+
+def _summary(distances_m: np.ndarray) -> dict:
+    q = np.percentile(distances_m, [50, 90, 99]) * 1e3
+    return {"mean": 1e3 * float(distances_m.mean()), "median": float(q[0]), "p90": float(q[1]), "p99": float(q[2])}
+
+
+if __name__ == "__main__":
+    main()
