@@ -27,6 +27,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from rfsdf.jsonio import to_json
+from rfsdf.metrics import true_surface_samples
 from rfsdf.radar import read_measurements
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.scene import load_scene
@@ -66,13 +67,10 @@ class TrueSurface:
     owner object and whether some view of ``acquisition`` observes them."""
 
     def __init__(self, scene, acquisition, *, seed: int):
-        meshes = scene.object_meshes()
-        reference = trimesh.util.concatenate(meshes)
-        owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
-        points, faces = trimesh.sample.sample_surface(reference, SAMPLES, seed=seed)
-        self.scene, self.points, self.owner = scene, np.asarray(points), owner_of_face[faces]
-        normals = torch.as_tensor(np.asarray(reference.face_normals[faces]))
-        self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), normals, acquisition, scene.sdf), bool)
+        self.scene = scene
+        self.points, normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
+        self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), torch.as_tensor(normals), acquisition,
+                                             scene.sdf), bool)
         self.tree = cKDTree(self.points)
 
     def signed_m(self, points: np.ndarray) -> np.ndarray:

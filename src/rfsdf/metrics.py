@@ -15,7 +15,8 @@ from scipy.spatial import cKDTree
 from .geometry import MeshSDF, sphere_trace
 
 __all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
-           "with_scene_iou", "evaluate_scene", "once_per_samples", "specular_feet", "seen_surface_errors"]
+           "with_scene_iou", "true_surface_samples", "evaluate_scene", "once_per_samples", "specular_feet",
+           "seen_surface_errors"]
 
 
 @dataclass(frozen=True)
@@ -173,6 +174,16 @@ def once_per_samples(observed: Callable) -> Callable:
     return remembered
 
 
+def true_surface_samples(scene, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Area-uniform samples of a Scene's object surfaces: points (N, 3) [m], their face normals
+    (N, 3) and the index of the object each lies on (N,), as :func:`evaluate_scene` scores them."""
+    meshes = scene.object_meshes()
+    reference = trimesh.util.concatenate(meshes)
+    owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
+    points, faces = trimesh.sample.sample_surface(reference, count, seed=seed)
+    return np.asarray(points), np.asarray(reference.face_normals[faces]), owner_of_face[faces]
+
+
 def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = None, threshold_m: float = 0.005,
                    samples: int = 50_000, seed: int = 0) -> SceneMetrics:
     """Full, observed-surface and per-object metrics of ``mesh`` against a Scene's objects.
@@ -183,12 +194,8 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
     """
     if len(mesh.faces) == 0:
         raise ValueError("cannot compare an empty mesh")
-    meshes = scene.object_meshes()
-    reference = trimesh.util.concatenate(meshes)
-    owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
     pa, na = _samples(mesh, samples, seed)
-    pb, faces = trimesh.sample.sample_surface(reference, samples, seed=seed)
-    pb, nb, owner = np.asarray(pb), np.asarray(reference.face_normals[faces]), owner_of_face[faces]
+    pb, nb, owner = true_surface_samples(scene, samples, seed)
     d_ab, i_ab = cKDTree(pb).query(pa)
     d_ba, i_ba = cKDTree(pa).query(pb)
     cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
