@@ -81,6 +81,25 @@ def test_adjoint_identity():
     assert abs(lhs - rhs) <= 1e-5 * abs(lhs)
 
 
+def test_the_adjoint_of_bands_is_each_band_s_own_adjoint_and_gradchecks():
+    """A^H (y w_b) for every weighting w_b of the frequencies in one pass equals the adjoint of
+    each weighted y apart (per view, across chunks), and its backward pass gradchecks."""
+    acq, pts = _random_acquisition(12), _points(13, q=30)
+    op = SensingOperator(acq, memory_budget_bytes=3000)  # several chunks
+    g = torch.Generator().manual_seed(14)
+    y = torch.randn(*acq.shape, dtype=torch.complex64, generator=g)
+    bands = torch.tensor([[1.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0, 1.0], [0.5, 0.0, 2.0, 0.0, 1.0]])
+    together = op.adjoint(y, pts, per_view=True, bands=bands)
+    assert together.shape == (acq.shape[0], len(bands), len(pts))
+    for b, weights in enumerate(bands):
+        torch.testing.assert_close(together[:, b], op.adjoint(y * weights, pts, per_view=True), rtol=1e-5, atol=1e-4)
+    torch.testing.assert_close(op.adjoint(y, pts, bands=bands), together.sum(0))
+    y64 = torch.randn(*acq.shape, dtype=torch.complex128, generator=g).requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda yy: op.adjoint(yy, pts.double(), bands=bands.double()), (y64,))
+    with pytest.raises(ValueError, match="bands"):
+        op.adjoint(y, pts, bands=bands[:, :3])
+
+
 def test_per_view_reflectivity():
     acq, pts = _random_acquisition(8), _points(9)
     c = torch.randn(2, len(pts), dtype=torch.complex64)

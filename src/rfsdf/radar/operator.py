@@ -173,15 +173,21 @@ class SensingOperator:
             raise ValueError(f"c must have shape (V, Q) = ({self.acq.shape[0]}, {points.shape[0]}), got {tuple(c.shape)}")
         return self._apply(points.detach(), c.detach().to(_complex_dtype(points.dtype))[:, None], progress, weight)
 
-    def adjoint(self, y: torch.Tensor, points: torch.Tensor, *, per_view: bool = False, progress: bool = False) -> torch.Tensor:
+    def adjoint(self, y: torch.Tensor, points: torch.Tensor, *, per_view: bool = False,
+                bands: torch.Tensor | None = None, progress: bool = False) -> torch.Tensor:
         """x = A^H y at ``points`` (Q, 3): (Q,) complex, or (V, Q) with ``per_view``.
 
-        Differentiable in ``y`` (not in the points: images are formed on fixed voxels).
+        bands : (B, K) real weights of the frequencies (e.g. masks of sub-bands): the adjoint
+        of each weighting of y at once, A^H (y w_b), (B, Q) or (V, B, Q), for the price of one
+        (the sum over frequencies is the last one taken). Differentiable in ``y`` (not in the
+        points: images are formed on fixed voxels).
         """
         points = as_points(points)
         if tuple(y.shape) != self.acq.shape:
             raise ValueError(f"y must have shape (V, T, R, K) = {self.acq.shape}, got {tuple(y.shape)}")
-        out = _ApplyAH.apply(y.to(_complex_dtype(points.dtype)), points, self, progress)
+        if bands is not None and (bands.dim() != 2 or bands.shape[1] != self.acq.shape[3]):
+            raise ValueError(f"bands must have shape (B, K) with K = {self.acq.shape[3]}, got {tuple(bands.shape)}")
+        out = _ApplyAH.apply(y.to(_complex_dtype(points.dtype)), points, self, progress, bands)
         return out if per_view else out.sum(dim=0)
 
     def point_response(self, source: torch.Tensor, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
@@ -244,41 +250,45 @@ class SensingOperator:
         return total.permute(0, 2, 3, 1).contiguous()
 
     @torch.no_grad()
-    def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False) -> torch.Tensor:
-        """A^H y per view: (V, Q)."""
+    def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False,
+                       bands: torch.Tensor | None = None) -> torch.Tensor:
+        """A^H y per view: (V, Q); with ``bands`` (B, K), A^H (y w_b) per view: (V, B, Q)."""
         y_kf = y.permute(0, 3, 1, 2)  # (V, K, T, R)
 
-        def back_project(views: slice, pts: slice) -> torch.Tensor:  # (v, q)
+        def back_project(views: slice, pts: slice) -> torch.Tensor:  # (v, q) or (v, B, q)
             u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
             z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
-            return (u_conj * z).sum(dim=(1, 2))
+            if bands is None:
+                return (u_conj * z).sum(dim=(1, 2))
+            return torch.einsum("bk,vkq->vbq", bands.to(z.dtype), (u_conj * z).sum(dim=2))
 
         return self._per_view_points(points, back_project, desc="A^H y", progress=progress)
 
     def _per_view_points(self, points: torch.Tensor, compute: Callable[[slice, slice], torch.Tensor], *,
                          desc: str = "", progress: bool = False) -> torch.Tensor:
-        """(V, Q): ``compute(views, points)`` (v, q) on each memory-budget chunk of ``points``
-        (Q, 3), put together."""
+        """(V, ..., Q): ``compute(views, points)`` (v, ..., q) on each memory-budget chunk of
+        ``points`` (Q, 3), put together."""
         blocks: dict[int, list[torch.Tensor]] = {}
         for views, pts in progress_bar(list(self._chunks(points.shape[0], points.device)), desc=desc,
                                        enabled=progress):
             blocks.setdefault(views.start, []).append(compute(views, pts))
-        return torch.cat([torch.cat(parts, dim=1) for _, parts in sorted(blocks.items())], dim=0)
+        return torch.cat([torch.cat(parts, dim=-1) for _, parts in sorted(blocks.items())], dim=0)
 
     @torch.no_grad()
     def _apply_vjp(self, points: torch.Tensor, c: torch.Tensor, grad_y: torch.Tensor, need_points: bool,
-                   spectrum: torch.Tensor | None = None):
+                   spectrum: torch.Tensor | None = None, need_spectrum: bool = True):
         """Gradients of a real loss with respect to c (V, 1 or K, Q), ``spectrum`` (K, Q) (None:
-        none; see forward) and points (Q, 3), given g = dL/dy."""
+        none; see forward; not formed unless ``need_spectrum``) and points (Q, 3) (None unless
+        ``need_points``), given g = dL/dy."""
         acq = self.acq
         k = self._wavenumbers(points.device).to(points.dtype if points.dtype == torch.float64 else torch.float32)
         g = grad_y.conj().permute(0, 3, 1, 2)  # (V, K, T, R)
         grad_c = torch.zeros_like(c)
-        grad_spectrum = None if spectrum is None else torch.zeros_like(spectrum)
+        grad_spectrum = None if spectrum is None or not need_spectrum else torch.zeros_like(spectrum)
         grad_points = torch.zeros(points.shape, dtype=points.dtype, device=points.device) if need_points else None
         for views, pts in self._chunks(points.shape[0], points.device, _BACKWARD_BUFFERS):
-            tx = self._geometry(acq.tx_m[views], acq.boresight[views], points[pts], derivatives=True)
-            rx = self._geometry(acq.rx_m[views], acq.boresight[views], points[pts], derivatives=True)
+            tx = self._geometry(acq.tx_m[views], acq.boresight[views], points[pts], derivatives=need_points)
+            rx = self._geometry(acq.rx_m[views], acq.boresight[views], points[pts], derivatives=need_points)
             u, w = self._phasors(*tx[:2], False), self._phasors(*rx[:2], False)
             g_v = g[views]
             per_tx = u * torch.matmul(g_v, w)  # (v, K, T, q): sum_j conj(g) A over Rx
@@ -286,7 +296,8 @@ class SensingOperator:
             c_chunk = c[views, :, pts]  # (v, 1 or K, q): the reflectivity A sees, times the spectrum if any
             if spectrum is not None:
                 grad_c[views, :, pts] = (per_frequency.conj() * spectrum[:, pts].conj()).sum(1, keepdim=True)
-                grad_spectrum[:, pts] += (per_frequency.conj() * c_chunk.conj()).sum(0)
+                if grad_spectrum is not None:
+                    grad_spectrum[:, pts] += (per_frequency.conj() * c_chunk.conj()).sum(0)
                 c_chunk = c_chunk * spectrum[:, pts]
             else:
                 grad_c[views, :, pts] = (per_frequency if c.shape[1] > 1 else per_frequency.sum(1, keepdim=True)).conj()
@@ -319,21 +330,23 @@ class _ApplyA(torch.autograd.Function):
         points, c, spectrum = ctx.saved_tensors
         grad_c, grad_spectrum, grad_points = ctx.op._apply_vjp(
             points.detach(), c.detach(), grad_y, ctx.needs_input_grad[0],
-            None if spectrum is None else spectrum.detach())
+            None if spectrum is None else spectrum.detach(), ctx.needs_input_grad[4])
         return (grad_points, grad_c if ctx.needs_input_grad[1] else None, None, None,
                 grad_spectrum if ctx.needs_input_grad[4] else None)
 
 
 class _ApplyAH(torch.autograd.Function):
-    """x = A^H y per view; its gradient in y is A applied to the gradient in x."""
+    """x = A^H y per view (per band: A^H (y w_b)); its gradient in y is A applied to the
+    gradient in x (with bands, to sum_b w_bk times the gradient of band b, at frequency k)."""
 
     @staticmethod
-    def forward(ctx, y, points, op, progress):
-        ctx.save_for_backward(points)
+    def forward(ctx, y, points, op, progress, bands):
+        ctx.save_for_backward(points, bands)
         ctx.op = op
-        return op._apply_adjoint(y.detach(), points.detach(), progress)
+        return op._apply_adjoint(y.detach(), points.detach(), progress, bands)
 
     @staticmethod
     def backward(ctx, grad_x):
-        (points,) = ctx.saved_tensors
-        return ctx.op._apply(points.detach(), grad_x[:, None]), None, None, None
+        points, bands = ctx.saved_tensors
+        c = grad_x[:, None] if bands is None else torch.einsum("bk,vbq->vkq", bands.to(grad_x.dtype), grad_x)
+        return ctx.op._apply(points.detach(), c), None, None, None, None

@@ -17,7 +17,8 @@ and the geometry of the lobe) and their areas (which grow with the surface's cur
 moves out) and their normals (which turn the lobe, ``surface.project_to_surface``), and phi
 through the reflection of each sample. With a material head (``field.materials``) that is the
 simulator's own Fresnel coefficient of the sample's material at its incidence angle in that
-view, in expectation over the head's class probabilities (``materials.mixture_fresnel``), so
+view, in expectation over the head's class probabilities (``materials.mixture_fresnel``, tabulated in the cosine:
+``materials.FresnelTable``), so
 the data supervise what each surface is made of; without one, a free reflectivity
 Gamma_phi >= 0 stands in for it (kept as an option for comparison). Facing and shadows are frozen
 between refreshes: shadows are traced against the network evaluated on the image grid
@@ -41,7 +42,7 @@ import numpy as np
 import torch
 
 from ..geometry import Grid, interpolated_sdf
-from ..materials import class_permittivities, mixture_fresnel
+from ..materials import FresnelTable, class_permittivities
 from ..progress import progress_bar
 from ..radar import SPEED_OF_LIGHT, Measurements, SensingOperator
 from ..radar.facets import facet_phase_weights
@@ -154,6 +155,7 @@ class CoherentRenderer:
         self.sight: torch.Tensor | None = None
         self.excess_m: torch.Tensor | None = None
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
+        self._fresnel: dict[tuple[str, ...], FresnelTable] = {}  # a material head's classes -> their table
 
     @property
     def num_views(self) -> int:
@@ -169,10 +171,8 @@ class CoherentRenderer:
         """(B, X) the normalised MF image of data ``y`` (F, T, R, K) from each sub-band's
         frequencies alone at ``targets`` (X, 3): A_b^H y_b / ||A_b,q||^2, where ||A_b,q||^2 is
         the band's share K_b / K of the column norm (every phasor has modulus 1)."""
-        return torch.stack([
-            self._normalise(view, self.operators[view].adjoint(y * mask, targets), voxel_index) / share
-            for mask, share in zip(self.band_masks.to(y.device), self.band_shares)
-        ])
+        images = self.operators[view].adjoint(y, targets, bands=self.band_masks.to(y.device))  # (B, X)
+        return self._normalise(view, images, voxel_index) / self.band_shares[:, None].to(images.device)
 
     def full_band(self, band_images: torch.Tensor) -> torch.Tensor:
         """(..., X) the full band's image from its sub-bands' (..., B, X): their sum weighted
@@ -255,6 +255,12 @@ class CoherentRenderer:
         frequency (inf for metal): the classes of a material head."""
         return class_permittivities(materials, self.centre_frequency_hz).to(self.device)
 
+    def fresnel_table(self, materials: tuple[str, ...]) -> FresnelTable:
+        """The classes' Fresnel coefficients tabulated in the cosine (built once per classes)."""
+        if materials not in self._fresnel:
+            self._fresnel[materials] = FresnelTable(self.class_permittivities(materials).cpu()).to(self.device)
+        return self._fresnel[materials]
+
     def surface_materials(self, field, *, geometry: bool = True) -> torch.Tensor | None:
         """(Q, K) class probabilities at the current surface candidates, or None for a field
         with a free reflectivity. ``geometry=False``: f held since the last refresh, so the
@@ -297,15 +303,14 @@ class CoherentRenderer:
         if probabilities is None:
             amplitude = field.reflectivity(self.candidates.anchors)
         else:
-            eps = self.class_permittivities(field.materials)
-            complex_dtype = torch.promote_types(points.dtype, torch.complex64)
+            table = self.fresnel_table(tuple(field.materials))
 
         def reflection(idx: torch.Tensor):
             """cos(theta_inc) -> Gamma of the samples ``idx``: their free reflectivity, or the
             Fresnel coefficient expected from their class probabilities."""
             if probabilities is None:
                 return lambda _cos: amplitude[idx]
-            return lambda cos: mixture_fresnel(cos, probabilities[idx], eps).to(complex_dtype)
+            return lambda cos: table.mixture(cos, probabilities[idx])
 
         targets = self.voxels[voxel_index]
         shape = (len(self.band_masks), len(voxel_index)) if bands else (len(voxel_index),)
