@@ -131,9 +131,8 @@ def check_reference(trainer, reference: Reference) -> Calibration:
     mine = reference.mask(renderer.candidates.anchors).to(probabilities.device)[:, None]
     all_views = torch.arange(renderer.num_views, device=renderer.device)
 
-    def image(p: torch.Tensor) -> torch.Tensor:
-        return torch.cat([renderer(field, all_views, chunk, geometry=False, probabilities=p)
-                          for chunk in index.split(1 << 14)], dim=1)
+    def image(p: torch.Tensor) -> torch.Tensor:  # one prediction a view, imaged at every bright voxel
+        return renderer(field, all_views, index, geometry=False, probabilities=p)
 
     own, rest = image(probabilities * mine), image(probabilities * ~mine)
     measured = observed[:, index]
