@@ -113,8 +113,7 @@ def test_the_observed_mask_traces_only_the_samples_in_a_cone_and_equals_tracing_
     ball shadows the left): the mask equals the slow one that traces a shadow ray for every
     sample and view, and the shadows change it."""
     from rfsdf.radar import Acquisition
-    from rfsdf.radar.coverage import DEFAULT_TOLERANCE_RAD, observed_mask
-    from rfsdf.radar.scattering import lit_mask
+    from rfsdf.radar.coverage import observed_mask
 
     scene = _two_ball_scene(tmp_path)
     centres = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.7, 0.0, 0.7]], dtype=torch.float64)
@@ -123,21 +122,46 @@ def test_the_observed_mask_traces_only_the_samples_in_a_cone_and_equals_tracing_
     n = torch.nn.functional.normalize(torch.randn(4000, 3, generator=torch.Generator().manual_seed(0)), dim=1)
     p = torch.cat([n[:2000] * 0.02 + torch.tensor([-0.05, 0, 0]), n[2000:] * 0.02 + torch.tensor([0.05, 0, 0])])
 
-    def slow(occluder):
-        seen = torch.zeros(len(p), dtype=torch.bool)
-        for v in range(acq.shape[0]):
-            tx, rx = acq.tx_m[v].mean(0), acq.rx_m[v].mean(0)
-            to_centre = torch.nn.functional.normalize(0.5 * (tx + rx) - p, dim=1)
-            elements = torch.cat([acq.tx_m[v], acq.rx_m[v]])
-            to_elements = torch.nn.functional.normalize(elements[None] - p[:, None], dim=2)
-            cone = torch.arccos((to_elements * to_centre[:, None]).sum(2).clamp(-1, 1)).max(dim=1).values
-            tilt = torch.arccos((n * to_centre).sum(1).clamp(-1, 1))
-            seen |= lit_mask(p, n, tx, rx, occluder=occluder) & (tilt <= cone + DEFAULT_TOLERANCE_RAD)
-        return seen
-
-    shadowed = slow(scene.sdf)
+    shadowed = _observed_by_every_element(p, n, acq, scene.sdf)
     assert torch.equal(observed_mask(p, n, acq, scene.sdf), shadowed)
-    assert (slow(None) & ~shadowed)[:2000].sum() > 20  # the left ball's cap facing +x, behind the right one
+    assert (_observed_by_every_element(p, n, acq, None) & ~shadowed)[:2000].sum() > 20  # the left ball's cap facing +x, behind the right one
+
+
+def test_the_observed_mask_of_a_scan_measures_its_cone_on_the_hull_and_equals_every_element_s():
+    """A scan's 5,445 elements (sar-77g: 1,089 frames of 1 Tx and 4 Rx) reduce to their hull's
+    corners for the cone: the same mask as the angle to every element, on samples with
+    normals in every direction in and around the scene's box."""
+    from rfsdf.radar import load_radar
+    from rfsdf.radar.coverage import _hull_corners, observed_mask
+
+    acq = load_radar("sar-77g").acquisition()
+    tx, rx = acq.view_elements(0)
+    assert len(_hull_corners(torch.cat([tx, rx]))) < 12
+    g = torch.Generator().manual_seed(1)
+    n = torch.nn.functional.normalize(torch.randn(6000, 3, generator=g, dtype=torch.float64), dim=1)
+    p = (torch.rand(6000, 3, generator=g, dtype=torch.float64) - 0.5) * torch.tensor([0.12, 0.12, 0.3])
+    slow = _observed_by_every_element(p, n, acq, None)
+    assert 100 < int(slow.sum()) < 5900
+    assert torch.equal(observed_mask(p, n, acq, None), slow)
+
+
+def _observed_by_every_element(p, n, acq, occluder):
+    """The observed mask the slow, obvious way: every sample's cone from the angle to every
+    element of each view, a shadow ray for every sample and view."""
+    from rfsdf.radar.coverage import DEFAULT_TOLERANCE_RAD
+    from rfsdf.radar.scattering import lit_mask
+
+    seen = torch.zeros(len(p), dtype=torch.bool)
+    for v in range(acq.num_views):
+        tx_elements, rx_elements = acq.view_elements(v)
+        tx, rx = tx_elements.mean(0), rx_elements.mean(0)
+        to_centre = torch.nn.functional.normalize(0.5 * (tx + rx) - p, dim=1)
+        elements = torch.cat([tx_elements, rx_elements])
+        cone = torch.stack([torch.arccos((torch.nn.functional.normalize(e - p, dim=1) * to_centre).sum(1).clamp(-1, 1))
+                            for e in elements]).max(dim=0).values
+        tilt = torch.arccos((n * to_centre).sum(1).clamp(-1, 1))
+        seen |= lit_mask(p, n, tx, rx, occluder=occluder) & (tilt <= cone + DEFAULT_TOLERANCE_RAD)
+    return seen
 
 
 def test_accuracy_and_completeness_are_split_by_whether_the_true_surface_is_observed(tmp_path):
