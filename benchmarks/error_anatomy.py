@@ -24,10 +24,9 @@ from pathlib import Path
 import numpy as np
 import torch
 import trimesh
-from scipy.spatial import cKDTree
 
 from rfsdf.jsonio import to_json
-from rfsdf.metrics import true_surface_samples
+from rfsdf.metrics import nearest, true_surface_samples
 from rfsdf.radar import read_measurements
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.scene import load_scene
@@ -71,7 +70,6 @@ class TrueSurface:
         self.points, normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
         self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), torch.as_tensor(normals), acquisition,
                                              scene.sdf), bool)
-        self.tree = cKDTree(self.points)
 
     def signed_m(self, points: np.ndarray) -> np.ndarray:
         """(N,) the scene SDF [m] at ``points`` (N, 3): negative inside an object."""
@@ -82,12 +80,12 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
     """The observed Chamfer of ``mesh`` and its parts [mm] (see the module docstring)."""
     predicted, faces = trimesh.sample.sample_surface(mesh, SAMPLES, seed=seed)
     predicted = np.asarray(predicted)
-    accuracy, nearest = truth.tree.query(predicted)
-    completeness, _ = cKDTree(predicted).query(truth.points)
+    accuracy, nearest_true = nearest(truth.points, predicted)
+    completeness, _ = nearest(predicted, truth.points)
     signed = truth.signed_m(predicted)
     parts = {"inside the true solids": signed < -band_m, "within the band": np.abs(signed) <= band_m,
              "outside the true solids": signed > band_m,
-             "nearest a seen true sample": truth.seen[nearest], "nearest an unseen one": ~truth.seen[nearest]}
+             "nearest a seen true sample": truth.seen[nearest_true], "nearest an unseen one": ~truth.seen[nearest_true]}
     component_of_face = np.empty(len(mesh.faces), int)
     for index, face_indices in enumerate(trimesh.graph.connected_components(mesh.face_adjacency,
                                                                            nodes=np.arange(len(mesh.faces)))):

@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF, sphere_trace
 
-__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "compare_meshes", "volumetric_iou", "evaluate_mesh",
+__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "nearest", "compare_meshes", "volumetric_iou", "evaluate_mesh",
            "with_scene_iou", "true_surface_samples", "evaluate_scene", "once_per_samples", "specular_feet",
            "seen_surface_errors"]
 
@@ -38,6 +38,17 @@ class MeshMetrics:
         return asdict(self)
 
 
+def nearest(points: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``queries`` (M, 3) the distance to the nearest of ``points`` (N, 3) and its
+    index, (M,) each, exactly.
+
+    The tree splits at sliding midpoints, not medians: samples crowded on a small surface
+    queried from far away (a high threshold's mesh against the whole scene) all lie at nearly
+    one distance, and a median tree visits most of them for every query (6.0 s against 0.58 s
+    for 50,000 queries, the same distances; scipy's ``balanced_tree=False``)."""
+    return cKDTree(points, balanced_tree=False, compact_nodes=False).query(queries)
+
+
 def _samples(mesh: trimesh.Trimesh, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     points, faces = trimesh.sample.sample_surface(mesh, count, seed=seed)
     return np.asarray(points), np.asarray(mesh.face_normals[faces])
@@ -50,8 +61,8 @@ def compare_meshes(predicted: trimesh.Trimesh, reference: trimesh.Trimesh, *, th
         raise ValueError("cannot compare an empty mesh")
     pa, na = _samples(predicted, samples, seed)
     pb, nb = _samples(reference, samples, seed)  # same seed: identical meshes give exactly 0
-    d_ab, i_ab = cKDTree(pb).query(pa)  # accuracy: predicted -> reference
-    d_ba, i_ba = cKDTree(pa).query(pb)  # completeness: reference -> predicted
+    d_ab, i_ab = nearest(pb, pa)  # accuracy: predicted -> reference
+    d_ba, i_ba = nearest(pa, pb)  # completeness: reference -> predicted
     return _scored(d_ab, d_ba, _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba]), threshold_m)
 
 
@@ -196,8 +207,8 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
         raise ValueError("cannot compare an empty mesh")
     pa, na = _samples(mesh, samples, seed)
     pb, nb, owner = true_surface_samples(scene, samples, seed)
-    d_ab, i_ab = cKDTree(pb).query(pa)
-    d_ba, i_ba = cKDTree(pa).query(pb)
+    d_ab, i_ab = nearest(pb, pa)
+    d_ba, i_ba = nearest(pa, pb)
     cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
     full = with_scene_iou(_scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m), mesh, scene, seed=seed)
     observed_metrics = observed_fraction = seen = None
