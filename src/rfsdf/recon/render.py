@@ -17,9 +17,9 @@ and the geometry of the lobe) and their areas (which grow with the surface's cur
 moves out) and their normals (which turn the lobe, ``surface.project_to_surface``), and phi
 through the reflection of each sample. With a material head (``field.materials``) that is the
 simulator's own Fresnel coefficient of the sample's material at its incidence angle in that
-view, in expectation over the head's class probabilities (``materials.mixture_fresnel``, tabulated in the cosine:
-``materials.FresnelTable``), so
-the data supervise what each surface is made of; without one, a free reflectivity
+view, in expectation over the head's class probabilities (``materials.mixture_fresnel``,
+tabulated in the cosine: ``materials.FresnelTable``), so the data supervise what each
+surface is made of; without one, a free reflectivity
 Gamma_phi >= 0 stands in for it (kept as an option for comparison). Facing and shadows are frozen
 between refreshes: shadows are traced against the network evaluated on the image grid
 (trilinear), a cheap stand-in for it.
@@ -258,7 +258,8 @@ class CoherentRenderer:
     def fresnel_table(self, materials: tuple[str, ...]) -> FresnelTable:
         """The classes' Fresnel coefficients tabulated in the cosine (built once per classes)."""
         if materials not in self._fresnel:
-            self._fresnel[materials] = FresnelTable(self.class_permittivities(materials).cpu()).to(self.device)
+            eps = class_permittivities(materials, self.centre_frequency_hz)
+            self._fresnel[materials] = FresnelTable(eps).to(self.device)
         return self._fresnel[materials]
 
     def surface_materials(self, field, *, geometry: bool = True) -> torch.Tensor | None:
