@@ -186,6 +186,14 @@ class LossConfig(StrictModel):
     # the seen faces to 1.1 mm, finer than the pooled amplitude loss sees; docs/results/
     # demo-quality.md, "The peaks held in the fit"); 0 leaves them to the warm start
     peak_weight: NonNegativeFloat = 1000.0
+    # move the predicted images' range peaks onto the data's, along the lines of sight of the
+    # warm start's range peaks, while the geometry moves: this times the mean pseudo-Huber
+    # misfit of their positions (in mm, knee 1 mm; recon/losses.py, peak_match_loss); each
+    # step up to ``peak_match_lines`` lines a view, sampled at five points within
+    # +-``peak_match_span_m`` of the peak; 0: off
+    peak_match_weight: NonNegativeFloat = 0.0
+    peak_match_lines: PositiveInt = 512
+    peak_match_span_m: PositiveFloat = 0.006
 
     @field_validator("data")
     @classmethod

@@ -129,15 +129,16 @@ class CoherentRenderer:
             self.band_masks[b, part] = True
         self.band_masks = self.band_masks.to(self.device)
         self.band_shares = self.band_masks.sum(1).to(dtype) / k  # (B,) K_b / K
+        self.data = data  # the thinned data the images are formed from
         views = progress_bar(range(len(self.operators)), desc="observed images", enabled=progress)
         if bands > 1:
             # one adjoint per band: the full band's image is their sum
-            band_observed = torch.stack([self._band_images(v, data.data[self.frames[v]].to(self.device), self.voxels)
+            band_observed = torch.stack([self._band_images(v, self.view_data(v), self.voxels, self.column_norms_sq[v])
                                          for v in views])  # (V, B, N)
             observed = self.full_band(band_observed)
         else:
-            observed = torch.stack([self._normalise(v, self.operators[v].adjoint(data.data[self.frames[v]].to(self.device),
-                                                                                 self.voxels)) for v in views])
+            observed = torch.stack([self._normalise(self.operators[v].adjoint(self.view_data(v), self.voxels),
+                                                    self.column_norms_sq[v]) for v in views])
         self.observed_peak = float(observed.abs().max())  # the data's units per unit of self.observed
         self.observed = observed / self.observed_peak  # (V, N) complex, peak amplitude 1
         # (V, B, N) complex, in the units of self.observed; None for the full band only
@@ -161,18 +162,29 @@ class CoherentRenderer:
     def num_views(self) -> int:
         return len(self.operators)
 
-    def _normalise(self, view: int, back_projection: torch.Tensor, voxel_index=slice(None)) -> torch.Tensor:
-        """A^H y / ||A_q||^2, and 0 where no antenna sees the voxel."""
-        norms = self.column_norms_sq[view, voxel_index]
+    def view_data(self, view: int) -> torch.Tensor:
+        """(F, T, R, K) complex: the (thinned) data of view ``view``, on the renderer's device."""
+        return self.data.data[self.frames[view]].to(self.device)
+
+    @staticmethod
+    def _normalise(back_projection: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
+        """A^H y / ||A_q||^2 given the column norms (X,), and 0 where no antenna sees the target."""
         seen = norms > 0
         return torch.where(seen, back_projection / torch.where(seen, norms, 1.0), 0.0)
 
-    def _band_images(self, view: int, y: torch.Tensor, targets: torch.Tensor, voxel_index=slice(None)) -> torch.Tensor:
+    def _band_images(self, view: int, y: torch.Tensor, targets: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
         """(B, X) the normalised MF image of data ``y`` (F, T, R, K) from each sub-band's
-        frequencies alone at ``targets`` (X, 3): A_b^H y_b / ||A_b,q||^2, where ||A_b,q||^2 is
-        the band's share K_b / K of the column norm (every phasor has modulus 1)."""
+        frequencies alone at ``targets`` (X, 3) of column norms ``norms`` (X,): A_b^H y_b /
+        ||A_b,q||^2, where ||A_b,q||^2 is the band's share K_b / K of the column norm (every
+        phasor has modulus 1)."""
         images = self.operators[view].adjoint(y, targets, bands=self.band_masks.to(y.device))  # (B, X)
-        return self._normalise(view, images, voxel_index) / self.band_shares[:, None].to(images.device)
+        return self._normalise(images, norms) / self.band_shares[:, None].to(images.device)
+
+    def observed_at(self, view: int, targets: torch.Tensor) -> torch.Tensor:
+        """(X,) complex: the data's full-band image of view ``view`` at any points ``targets``
+        (X, 3) [m], normalised as ``observed`` (e.g. along a line of sight, between voxels)."""
+        norms = self.operators[view].column_norms_sq(targets)
+        return self._normalise(self.operators[view].adjoint(self.view_data(view), targets), norms) / self.observed_peak
 
     def full_band(self, band_images: torch.Tensor) -> torch.Tensor:
         """(..., X) the full band's image from its sub-bands' (..., B, X): their sum weighted
@@ -290,12 +302,15 @@ class CoherentRenderer:
         return (*cand.projected(), None)
 
     def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True,
-                 probabilities: torch.Tensor | None = None, bands: bool = False) -> torch.Tensor:
+                 probabilities: torch.Tensor | None = None, bands: bool = False,
+                 lines: list[torch.Tensor] | None = None):
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
         ``geometry=False``: f as it was at the last refresh (the caller holds it fixed since),
         differentiable in the reflection only, and f is not evaluated at all. ``probabilities``:
         :meth:`surface_materials`, when the caller has them already. ``bands``: each sub-band's
-        image instead, (len(views), B, X), as ``band_observed``."""
+        image instead, (len(views), B, X), as ``band_observed``. ``lines``: also each view's
+        full-band image at points of its own (one (L_v, 3) tensor [m] per view, as
+        :meth:`observed_at`), from the same prediction: then (images, [(L_v,) complex])."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         points, normals, area, corners = self.surface_geometry(field, geometry=geometry)
@@ -313,21 +328,30 @@ class CoherentRenderer:
                 return lambda _cos: amplitude[idx]
             return lambda cos: table.mixture(cos, probabilities[idx])
 
-        targets = self.voxels[voxel_index]
-        shape = (len(self.band_masks), len(voxel_index)) if bands else (len(voxel_index),)
-        images = []
-        for v in views.tolist():
+        voxels, complex_dtype = self.voxels[voxel_index], torch.promote_types(points.dtype, torch.complex64)
+        images, line_images = [], []
+        for i, v in enumerate(views.tolist()):
+            extra = None if lines is None else lines[i]  # (L, 3) or None
+            targets = voxels if extra is None else torch.cat([voxels, extra])
+            norms = self.column_norms_sq[v, voxel_index]
+            if extra is not None:
+                norms = torch.cat([norms, self.operators[v].column_norms_sq(extra)])
             idx = self.lit[v].nonzero().squeeze(1)
             if len(idx) == 0:
-                images.append(torch.zeros(shape, dtype=torch.promote_types(points.dtype, torch.complex64),
-                                          device=self.device))
-                continue
-            through = {} if self.sight is None else {"sight": self.sight[v, idx], "excess_m": self.excess_m[v, idx]}
-            y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
-                                  None if corners is None else corners[idx], **through)
-            images.append(self._band_images(v, y, targets, voxel_index) if bands
-                          else self._normalise(v, self.operators[v].adjoint(y, targets), voxel_index))
-        return torch.stack(images)
+                image = torch.zeros((len(self.band_masks), len(targets)) if bands else (len(targets),),
+                                    dtype=complex_dtype, device=self.device)
+            else:
+                through = {} if self.sight is None else {"sight": self.sight[v, idx], "excess_m": self.excess_m[v, idx]}
+                y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
+                                      None if corners is None else corners[idx], **through)
+                image = (self._band_images(v, y, targets, norms) if bands
+                         else self._normalise(self.operators[v].adjoint(y, targets), norms))
+            images.append(image[..., :len(voxels)])
+            if extra is None:
+                line_images.append(None)
+            else:
+                line_images.append(self.full_band(image[..., len(voxels):]) if bands else image[len(voxels):])
+        return torch.stack(images) if lines is None else (torch.stack(images), line_images)
 
 
 def _require_unambiguous(acquisition, grid: Grid, frequency_step: int) -> None:

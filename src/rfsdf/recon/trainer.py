@@ -36,13 +36,17 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, uses_phase
+from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, peak_match_loss,
+                     uses_phase)
 from .render import RENDERERS
 from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
 from .warm_start import detection_threshold, excluded_voxels, known_exclusion, warm_start
 
 __all__ = ["Problem", "StepRecord", "FitResult", "Trainer", "initial_field"]
+
+PEAK_MATCH_SAMPLES = 5  # points along each range peak's line (LossConfig.peak_match_weight)
+PEAK_MATCH_SCALE_M = 1e-3  # the peak-match misfit's knee: quadratic below it, linear beyond [m]
 
 
 @dataclass(frozen=True)
@@ -180,7 +184,10 @@ class Trainer:
         self.step = 0
         self.log: list[StepRecord] = []
         self.warm_state: dict | None = None  # the field's state after the warm start
-        self.peaks: tuple[torch.Tensor, torch.Tensor] | None = None  # the warm start's range peaks: (N, 3), (N,)
+        # the warm start's range peaks: points (N, 3) [m], amplitude (N,), view (N,) and the
+        # unit vectors (N, 3) along which each was found (radar.range_peaks.RangePeaks)
+        self.peaks: tuple[torch.Tensor, ...] | None = None
+        self._peak_lines: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None  # see peak_lines()
 
     # Checkpoints -------------------------------------------------------------------------
     @property
@@ -252,13 +259,14 @@ class Trainer:
         if ic.normal_weight > 0:
             normals = specular_normals(per_view, *(c.cpu().numpy() for c in acquisition.view_centres()), grid)
         peaks = None
-        if ic.peak_weight > 0 or self.config.loss.peak_weight > 0:
+        if ic.peak_weight > 0 or self.config.loss.peak_weight > 0 or self.config.loss.peak_match_weight > 0:
             peaks = range_peaks(self.problem.measurements, per_view, grid, threshold=threshold,
                                 local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude,
                                 through=self.problem.through)
             if len(peaks.points):
-                self.peaks = (torch.from_numpy(peaks.points).float().to(self.device),
-                              torch.from_numpy(peaks.amplitude).float().to(self.device))
+                self.peaks = tuple(torch.from_numpy(np.asarray(a)).to(self.device) for a in
+                                   (peaks.points.astype(np.float32), peaks.amplitude.astype(np.float32),
+                                    peaks.view.astype(np.int64), peaks.towards.astype(np.float32)))
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
@@ -306,8 +314,13 @@ class Trainer:
         probabilities = self.surface_materials(geometry=not frozen)
         data_loss = DATA_LOSSES.get(cfg.loss.stage_at(self.step / cfg.train.steps))
         bands = bands_of(data_loss) > 1
+        chosen = self.matched_lines(views) if not frozen and cfg.loss.peak_match_weight > 0 else None
+        lines = None if chosen is None else [None if i is None else self.peak_lines()[0][i].reshape(-1, 3)
+                                             for i in chosen]
         predicted = self.renderer(self.field, views, voxels, geometry=not frozen, probabilities=probabilities,
-                                  bands=bands)
+                                  bands=bands, lines=lines)
+        if lines is not None:
+            predicted, line_images = predicted
         observed = self.renderer.band_observed[views][:, :, voxels] if bands else self.renderer.observed[views][:, voxels]
         known_gain = self.problem.gain is not None and probabilities is not None
         if known_gain:  # into the units of the observed images (peak 1)
@@ -334,11 +347,49 @@ class Trainer:
         terms["eikonal"] = eikonal
         terms["loss"] = data + cfg.loss.eikonal_weight * eikonal + terms.get("material", 0.0)
         if not frozen and cfg.loss.peak_weight > 0 and self.peaks is not None:
-            points, amplitude = self.peaks
+            points, amplitude = self.peaks[:2]
             held = (self.field.sdf(points).abs() * amplitude).sum() / amplitude.sum()
             terms["peaks"] = cfg.loss.peak_weight * held
             terms["loss"] = terms["loss"] + terms["peaks"]
+        if chosen is not None and any(i is not None for i in chosen):
+            _, observed_lines, offsets = self.peak_lines()
+            index = torch.cat([i for i in chosen if i is not None])
+            line_predicted = torch.cat([image.reshape(len(i), -1) for i, image in zip(chosen, line_images)
+                                        if i is not None])
+            terms["peak_match"] = cfg.loss.peak_match_weight * peak_match_loss(
+                line_predicted, observed_lines[index], offsets, self.peaks[1][index], PEAK_MATCH_SCALE_M)
+            terms["loss"] = terms["loss"] + terms["peak_match"]
         return terms
+
+    def peak_lines(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Each range peak's line of sight, sampled at ``PEAK_MATCH_SAMPLES`` offsets (S,) [m]
+        within +-``loss.peak_match_span_m`` of it towards its view: points (N, S, 3) [m], the
+        data's image there (N, S) complex (the renderer's, formed once), and the offsets."""
+        if self._peak_lines is None:
+            span = self.config.loss.peak_match_span_m
+            points, _, view, towards = self.peaks
+            offsets = torch.linspace(-span, span, PEAK_MATCH_SAMPLES, device=self.device)
+            lines = points[:, None] + offsets[None, :, None] * towards[:, None]  # (N, S, 3)
+            observed = torch.zeros(lines.shape[:2], dtype=torch.complex64, device=self.device)
+            with torch.no_grad():
+                for v in view.unique().tolist():
+                    mine = view == v
+                    observed[mine] = self.renderer.observed_at(v, lines[mine].reshape(-1, 3)).reshape(-1, len(offsets))
+            self._peak_lines = (lines, observed, offsets)
+        return self._peak_lines
+
+    def matched_lines(self, views: torch.Tensor) -> list[torch.Tensor | None] | None:
+        """For each of ``views``, the indices of up to ``loss.peak_match_lines`` of its range
+        peaks (drawn from the generator; None: it has none); None without peaks."""
+        if self.peaks is None:
+            return None
+        most, chosen = self.config.loss.peak_match_lines, []
+        for v in views.tolist():
+            index = (self.peaks[2] == v).nonzero().squeeze(1)
+            if len(index) > most:
+                index = index[torch.randperm(len(index), generator=self.generator)[:most].to(index.device)]
+            chosen.append(index if len(index) else None)
+        return chosen
 
     def fit(self, *, resume: bool = False, on_step: Callable[[int], None] | None = None) -> FitResult:
         """Train to ``config.train.steps``; returns the field and the log. See the module docstring."""
