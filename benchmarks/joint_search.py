@@ -93,7 +93,7 @@ def render_changes(args) -> dict:
     scene, losses = basin.surface_losses(settings)
     renderer = losses.renderer
     renderer.refresh(scene.sdf, scene.sdf(renderer.voxels), torch.Generator().manual_seed(0))
-    points, normals, area, corners = renderer.surface_geometry(basin._Surface(scene.sdf), geometry=False)
+    points, normals, area, corners = renderer.surface_geometry(basin.FixedSurface(scene.sdf), geometry=False)
     probabilities = torch.nn.functional.one_hot(losses.known(renderer.candidates.anchors), len(MATERIAL_CLASSES)).float()
     permittivities = renderer.class_permittivities(MATERIAL_CLASSES)
     scale = losses.gain / renderer.observed_peak

@@ -103,7 +103,7 @@ class _KnotSearch:
     def __init__(self, losses: basin.SurfaceLosses, sdf, voxels: torch.Tensor):
         renderer = self.renderer = losses.renderer
         self.voxels, self.index, self.scale = voxels, losses.voxels, losses.gain / renderer.observed_peak
-        surface = basin._Surface(sdf)
+        surface = basin.FixedSurface(sdf)
         with torch.no_grad():
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             self.probabilities = torch.nn.functional.one_hot(losses.known(renderer.candidates.anchors),

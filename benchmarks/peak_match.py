@@ -25,7 +25,7 @@ from rfsdf.materials import MATERIAL_CLASSES
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.recon.losses import peak_offset
-from rfsdf.studies.basin import TrueMaterials, _Surface, smooth_displacement
+from rfsdf.studies.basin import FixedSurface, TrueMaterials, smooth_displacement
 
 SMOOTH_MM = (0.5, 1.0, 2.0, 4.0)
 DILATION_MM = (1.0, 2.0)
@@ -58,7 +58,7 @@ def main() -> None:
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             classes = known(renderer.candidates.anchors)
             probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
-            _, images = renderer(_Surface(sdf), torch.arange(renderer.num_views), torch.arange(1), geometry=False,
+            _, images = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), torch.arange(1), geometry=False,
                                  probabilities=probabilities,
                                  lines=[lines[i].reshape(-1, 3) if len(i) else None for i in per_view])
         predicted = torch.zeros_like(observed)

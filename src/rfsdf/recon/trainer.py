@@ -264,7 +264,7 @@ class Trainer:
                                 local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude,
                                 through=self.problem.through)
             if len(peaks.points):
-                self.peaks = tuple(torch.from_numpy(np.asarray(a)).to(self.device) for a in
+                self.peaks = tuple(torch.from_numpy(a).to(self.device) for a in
                                    (peaks.points.astype(np.float32), peaks.amplitude.astype(np.float32),
                                     peaks.view.astype(np.int64), peaks.towards.astype(np.float32)))
         warm_start(self.field, power, grid, threshold=threshold, local_threshold=ic.local_threshold,

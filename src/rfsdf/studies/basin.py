@@ -218,8 +218,9 @@ def regressed_field(problem: Problem, config: ReconConfig, target_sdf, near_m: t
 
 
 @dataclass(frozen=True)
-class _Surface:
-    """A surface as the renderer asks for one: its SDF, and the classes of its materials."""
+class FixedSurface:
+    """A given surface (not a field being fitted) as the renderer asks for one: its SDF, and the
+    classes of its materials."""
 
     sdf: object
     materials: tuple[str, ...] = MATERIAL_CLASSES
@@ -246,7 +247,7 @@ class SurfaceLosses:
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             classes = self.known(renderer.candidates.anchors)
             probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
-            halves = renderer(_Surface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
+            halves = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
                               probabilities=probabilities, bands=True) * (self.gain / renderer.observed_peak)
         images = {True: halves, False: renderer.full_band(halves)}  # one rendering for every loss
         observed = {False: renderer.observed[:, self.voxels], True: renderer.band_observed[:, :, self.voxels]}
