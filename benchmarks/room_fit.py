@@ -19,8 +19,6 @@ import argparse
 import time
 from pathlib import Path
 
-import torch
-
 from rfsdf.jsonio import to_json
 from rfsdf.metrics import specular_feet
 from rfsdf.radar import load_radar, read_measurements, simulate

@@ -6,7 +6,6 @@ import math
 import pytest
 import torch
 
-from rfsdf.field import RadarField
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
     MIN_OBSERVED_FRACTION, class_accuracy, eps_of_reflectivity, object_materials, scene_reference,

@@ -1,7 +1,6 @@
 """Room-scale simulation: thin walls mesh, a large wall returns the image source's value,
 and coarse facets integrate what coarse points turn into speckle."""
 
-import dataclasses
 import math
 
 import numpy as np

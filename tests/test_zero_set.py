@@ -12,7 +12,7 @@ from rfsdf.geometry import (
     Box, Sphere, chord_gaps, facet_geometry, project_to_zero_set, refine_creases, vertex_normals,
 )
 from rfsdf.mesh import extract_mesh_near_surface, mesh_blocks
-from rfsdf.radar import load_radar, simulate
+from rfsdf.radar import simulate
 from rfsdf.scene import Scene
 from rfsdf.scene_spec import SceneSpec
 from rfsdf.studies.ball_fit import small_radar

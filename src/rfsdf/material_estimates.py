@@ -28,7 +28,7 @@ import torch
 import trimesh
 
 from .config import validate
-from .materials import class_reflectivities, get_material, point_reflectivity, reflectivity_class
+from .materials import get_material, point_reflectivity, reflectivity_class
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
