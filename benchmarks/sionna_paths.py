@@ -1,25 +1,35 @@
-"""Sionna RT's specular channel for rfsdf's Tx/Rx pairs; run by ``sionna_crosscheck.py`` under a
-Python that has Sionna RT (never rfsdf's own: Sionna is not one of its dependencies).
+"""Sionna RT's specular channel for rfsdf's Tx/Rx pairs; run by ``sionna_crosscheck.py`` and
+``sionna_slab.py`` under a Python that has Sionna RT (never rfsdf's own: Sionna is not one
+of its dependencies).
 
-    python sionna_paths.py SCENE.xml PAIRS.npz OUT.npz
+    python sionna_paths.py SCENE.xml PAIRS.npz OUT.npz [--max-depth N] [--refraction]
 
 PAIRS.npz: tx_m (P, 3), rx_m (P, 3) [m], frequencies_hz (K,). OUT.npz: h (P, K) complex, the
-sum over single-bounce specular paths (max_depth 1, no line of sight, no refraction, no
-diffuse part, isotropic antennas, one polarisation) of a_i exp(-j 2 pi (f - fc) tau_i), a_i
-taken at the band centre fc as Sionna gives them.
+sum over specular paths (no line of sight, no diffuse part, no diffraction, isotropic
+antennas, one polarisation) of a_i exp(-j 2 pi (f - fc) tau_i), a_i taken at the band centre
+fc as Sionna gives them. By default single-bounce reflections only (max depth 1, no
+refraction); ``--refraction`` lets rays pass through each surface as Sionna's slab of its
+material's thickness (a reflection behind a sheet is depth 3: through, back, through).
 """
 
-import sys
+import argparse
 
 import mitsuba as mi  # noqa: F401 - Sionna picks its variant on import
 import numpy as np
 import sionna.rt as rt
 
 
-def main(scene_file: str, pairs_file: str, out_file: str) -> None:
-    pairs = np.load(pairs_file)
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scene_file")
+    parser.add_argument("pairs_file")
+    parser.add_argument("out_file")
+    parser.add_argument("--max-depth", type=int, default=1)
+    parser.add_argument("--refraction", action="store_true")
+    args = parser.parse_args()
+    pairs = np.load(args.pairs_file)
     frequencies = pairs["frequencies_hz"]
-    scene = rt.load_scene(scene_file)
+    scene = rt.load_scene(args.scene_file)
     scene.frequency = float(frequencies.mean())
     array = dict(num_rows=1, num_cols=1, vertical_spacing=0.5, horizontal_spacing=0.5, pattern="iso",
                  polarization="V")
@@ -29,14 +39,14 @@ def main(scene_file: str, pairs_file: str, out_file: str) -> None:
     for p, (tx, rx) in enumerate(zip(pairs["tx_m"], pairs["rx_m"])):
         scene.add(rt.Transmitter(f"tx{p}", position=[float(v) for v in tx]))
         scene.add(rt.Receiver(f"rx{p}", position=[float(v) for v in rx]))
-        paths = solver(scene, max_depth=1, los=False, specular_reflection=True, diffuse_reflection=False,
-                       refraction=False, synthetic_array=False)
+        paths = solver(scene, max_depth=args.max_depth, los=False, specular_reflection=True,
+                       diffuse_reflection=False, refraction=args.refraction, synthetic_array=False)
         cfr = paths.cfr(frequencies=frequencies - scene.frequency, normalize_delays=False, out_type="numpy")
         h[p] = np.asarray(cfr).reshape(-1, len(frequencies))[0]
         scene.remove(f"tx{p}")
         scene.remove(f"rx{p}")
-    np.savez(out_file, h=h)
+    np.savez(args.out_file, h=h)
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main()

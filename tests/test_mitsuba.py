@@ -22,6 +22,7 @@ from rfsdf.mitsuba.write import export_scene, write_ply
 from rfsdf.radar import simulate
 from rfsdf.scene import Scene, build_shape, load_scene, scene_presets
 from rfsdf.scene_model import SceneModel, analytic_spec
+from rfsdf.scene_spec import SceneSpec
 from test_hostile_inputs import _refused
 from test_rooms import _monostatic
 
@@ -297,6 +298,37 @@ def test_every_preset_survives_export_and_reading_back(tmp_path):
             with torch.no_grad():
                 chamfer = 0.5 * (original.sdf(on_read).abs().mean() + read.sdf(on_original).abs().mean())
             assert chamfer < 1e-3, (preset, original.name, float(chamfer))
+
+
+def test_a_sheet_and_a_shell_are_written_as_their_surfaces_with_their_thickness(tmp_path):
+    """Sionna models a wall as one surface with its material's thickness: the slab rfsdf
+    makes of a sheet (two faces) would cross two walls. So a sheet is written as its open
+    rectangle and a shell as its inner faces, each with its thickness, and both read back
+    with the SDF they had (the shell as Sionna's rooms are: around the radar)."""
+    room = trimesh.creation.box(extents=(4.0, 3.0, 2.5))
+    _ply(tmp_path, "room.ply", room)
+    scene = Scene(SceneSpec.model_validate({
+        "name": "walls", "bounds": {"lower_m": [-2.5, -2.0, -1.5], "upper_m": [2.5, 2.0, 1.5]},
+        "objects": [
+            {"name": "pane", "material": "glass",
+             "shape": {"type": "mesh", "builtin": "rectangle", "size_m": 0.4, "center_m": [0.5, 0.0, 0.3],
+                       "reading": "sheet", "thickness_m": 0.004}},
+            {"name": "room", "material": "concrete",
+             "shape": {"type": "mesh", "path": "meshes/room.ply", "reading": "shell", "thickness_m": 0.1}}]}),
+        base_dir=tmp_path)
+    xml = export_scene(scene, tmp_path / "out")
+    pane = trimesh.load(tmp_path / "out" / "meshes" / "pane.ply", process=False)
+    assert not pane.is_watertight and np.ptp(pane.vertices[:, 2]) == 0  # one flat surface, not a slab
+    np.testing.assert_allclose(pane.bounds, [[0.3, -0.2, 0.3], [0.7, 0.2, 0.3]], atol=1e-6)
+    walls = trimesh.load(tmp_path / "out" / "meshes" / "room.ply", process=False)
+    np.testing.assert_allclose(walls.extents, [4.0, 3.0, 2.5], atol=1e-6)  # the inner faces alone
+    thickness = {e.get("id"): float(e.find("float[@name='thickness']").get("value")) for e in
+                 ET.parse(xml).getroot().iter("bsdf")}
+    assert thickness == {"mat-glass-4mm": 0.004, "mat-concrete-100mm": 0.1}
+    back = load_scene(xml).around_radar(np.array([[0.0, 0.0, 0.0]]))
+    probes = torch.tensor([[0.5, 0.0, 0.31], [0.5, 0.0, 0.3], [1.95, 0.0, 0.0], [2.05, 0.0, 0.0]], dtype=torch.float64)
+    for original, read in zip(scene.objects, back.objects):
+        np.testing.assert_allclose(read.sdf(probes).detach().numpy(), original.sdf(probes).detach().numpy(), atol=1e-6)
 
 
 def test_scene_export_on_the_command_line_reads_back_and_refuses_the_input_folder(tmp_path):

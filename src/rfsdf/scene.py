@@ -138,6 +138,19 @@ def surface_mesh(spec: MeshShapeSpec, base_dir: Path = Path(".")) -> trimesh.Tri
     return mesh
 
 
+def transformed(surface: trimesh.Trimesh, spec: MeshShapeSpec) -> trimesh.Trimesh:
+    """A copy of a mesh shape's :func:`surface_mesh` ``surface`` moved by the shape's
+    ``transform`` (scale, rotation, then translation), where the scene has it."""
+    surface = surface.copy()
+    if spec.transform is not None:
+        tf = spec.transform
+        matrix = np.eye(4)
+        matrix[:3, :3] = geo.rotation_matrix(tf.rotate_axis, tf.rotate_rad).numpy() * tf.scale
+        matrix[:3, 3] = tf.translate_m
+        surface.apply_transform(matrix)
+    return surface
+
+
 def mesh_reading(spec: MeshShapeSpec, surface: trimesh.Trimesh) -> str:
     """How a mesh shape is read: its ``reading``, else solid when the surface is closed and
     sheet when it is open."""
@@ -167,15 +180,8 @@ def box_table(shape: MeshShapeSpec, reading: str, surface: trimesh.Trimesh) -> d
     shell, a flat rectangle read as a sheet). A shell is the box ``thickness_m`` larger less
     the mesh's box; a box whose axes are not the scene's is a box about the origin turned
     and moved by its ``transform``."""
-    surface = surface.copy()
-    scale = 1.0
-    if shape.transform is not None:
-        tf = shape.transform
-        scale = tf.scale
-        matrix = np.eye(4)
-        matrix[:3, :3] = geo.rotation_matrix(tf.rotate_axis, tf.rotate_rad).numpy() * scale
-        matrix[:3, 3] = tf.translate_m
-        surface.apply_transform(matrix)
+    surface = transformed(surface, shape)
+    scale = shape.transform.scale if shape.transform is not None else 1.0
     box = cuboid_of(surface)
     if box is None or box.flat != (reading == "sheet"):
         return None

@@ -2,7 +2,10 @@
 
 Each object's surface is its mesh (:meth:`rfsdf.scene.Scene.object_meshes`): a mesh
 object's own triangles, or marching cubes of an analytic SDF (192 cells along the object's
-longest edge, or a third of its thickness where it is thinner than 3 such cells). Catalogue
+longest edge, or a third of its thickness where it is thinner than 3 such cells). A mesh
+read as a sheet or a shell is written as its surface, not as the walls rfsdf makes of it:
+Sionna models a wall as one surface with its material's thickness, and would take the
+walls' two faces for two walls (twice the transmission loss). Catalogue
 materials become ``itu-radio-material`` (the names are ITU-R P.2040's, as Sionna's), custom
 ones ``radio-material`` with their constant permittivity and conductivity. The thickness
 Sionna gives a material (its slab model) is the object's: a sheet's or shell's own, else
@@ -26,7 +29,7 @@ import trimesh
 
 from ..errors import RfsdfError
 from ..materials import MATERIALS
-from ..scene import Scene
+from ..scene import Scene, surface_mesh, transformed
 from ..scene_spec import MeshShapeSpec
 
 __all__ = ["export_scene", "write_ply"]
@@ -70,7 +73,7 @@ def _property(parent: ET.Element, tag: str, name: str, value) -> None:
 
 def _thickness(scene: Scene, obj, spec_shape, mesh: trimesh.Trimesh) -> float:
     if isinstance(spec_shape, MeshShapeSpec) and spec_shape.thickness_m is not None:
-        return float(spec_shape.thickness_m)
+        return float(spec_shape.thickness_m) * (spec_shape.transform.scale if spec_shape.transform is not None else 1.0)
     # to 0.1 mm: marching cubes leaves digits that mean nothing
     return round(min(float(mesh.extents.min()), scene.thinnest_m(obj)), 4)
 
@@ -87,6 +90,8 @@ def export_scene(scene: Scene, folder: Path) -> Path:
     files: list[tuple[str, trimesh.Trimesh]] = []
     materials: dict[tuple[str, float], str] = {}  # (material, thickness) -> bsdf id, shared as in Sionna's scenes
     for obj, spec, mesh in zip(scene.objects, scene.spec.objects, meshes):
+        if obj.reading is not None and obj.reading.reading in ("sheet", "shell"):
+            mesh = transformed(surface_mesh(spec.shape, scene.base_dir), spec.shape)
         ident = _identifier(obj.name, taken)
         material, thickness = obj.material, _thickness(scene, obj, spec.shape, mesh)
         bsdf_id = materials.get((material.name, thickness))
