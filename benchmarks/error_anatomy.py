@@ -1,6 +1,6 @@
 """What a demo's observed-surface Chamfer is made of, method by method. The metric
 (`rfsdf.metrics.evaluate_scene`) is half the *accuracy* of every sample of the predicted
-surface (its distance to the nearest true sample, wherever it lies) and half the
+surface (its distance to the true surface, wherever it lies) and half the
 *completeness* of the true surface some view observes. So its accuracy half also scores the
 predicted surface over true faces no view sees, which the data do not constrain. Split here:
 the accuracy by where the predicted sample lies against the true solids (inside one by
@@ -26,7 +26,7 @@ import torch
 import trimesh
 
 from rfsdf.jsonio import to_json
-from rfsdf.metrics import nearest, true_surface_samples
+from rfsdf.metrics import nearest, to_surface, true_surface_samples
 from rfsdf.radar import read_measurements
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.scene import load_scene
@@ -68,6 +68,7 @@ class TrueSurface:
     def __init__(self, scene, acquisition, *, seed: int):
         self.scene = scene
         self.points, normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
+        self.mesh = scene.ground_truth_mesh()
         self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), torch.as_tensor(normals), acquisition,
                                              scene.sdf), bool)
 
@@ -80,8 +81,9 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
     """The observed Chamfer of ``mesh`` and its parts [mm] (see the module docstring)."""
     predicted, faces = trimesh.sample.sample_surface(mesh, SAMPLES, seed=seed)
     predicted = np.asarray(predicted)
-    accuracy, nearest_true = nearest(truth.points, predicted)
-    completeness, _ = nearest(predicted, truth.points)
+    accuracy = to_surface(predicted, truth.mesh)[0]
+    completeness = to_surface(truth.points, mesh)[0]
+    nearest_true = nearest(truth.points, predicted)[1]
     signed = truth.signed_m(predicted)
     parts = {"inside the true solids": signed < -band_m, "within the band": np.abs(signed) <= band_m,
              "outside the true solids": signed > band_m,

@@ -1,12 +1,19 @@
 """Distances between a reconstructed mesh and the truth: Chamfer-L1, F-score, normal
-consistency, 95th-percentile Hausdorff (all from area-uniform surface samples and nearest
-neighbours) and volumetric IoU (from inside/outside tests on uniform points in a box)."""
+consistency, 95th-percentile Hausdorff (all from area-uniform samples of each surface and
+their exact distances to the other surface's triangles) and volumetric IoU (from
+inside/outside tests on uniform points in a box).
+
+Distances go to the other surface, not to its nearest sample: between two samplings of one
+surface the nearest-sample distance is about half their spacing, a floor under every score
+(0.57 mm on the demo's scene at 50,000 samples, against 0.05 mm to the surface: the marching
+cubes' own error), which a target of a millimetre cannot afford."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from typing import Callable
 
+import igl
 import numpy as np
 import torch
 import trimesh
@@ -14,16 +21,17 @@ from scipy.spatial import cKDTree
 
 from .geometry import MeshSDF, sphere_trace
 
-__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "nearest", "compare_meshes", "volumetric_iou", "evaluate_mesh",
+__all__ = ["MeshMetrics", "ObjectMetrics", "SceneMetrics", "nearest", "to_surface", "compare_meshes", "volumetric_iou", "evaluate_mesh",
            "with_scene_iou", "true_surface_samples", "evaluate_scene", "once_per_samples", "specular_feet",
            "seen_surface_errors"]
 
 
 @dataclass(frozen=True)
 class MeshMetrics:
-    """chamfer_l1_mm: mean of the two mean nearest distances [mm]; fscore, precision, recall
-    at ``threshold_mm``; normal_consistency: mean |n_a . n_b| of nearest pairs (1 = perfect);
-    hausdorff95_mm: the larger of the two 95th-percentile nearest distances [mm]."""
+    """chamfer_l1_mm: mean of the two mean distances [mm] (each surface's samples to the other
+    surface); fscore, precision, recall at ``threshold_mm``; normal_consistency: mean
+    |n_a . n_b| of each sample's normal and its nearest triangle's (1 = perfect);
+    hausdorff95_mm: the larger of the two 95th-percentile distances [mm]."""
 
     chamfer_l1_mm: float
     fscore: float
@@ -49,6 +57,15 @@ def nearest(points: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.nda
     return cKDTree(points, balanced_tree=False, compact_nodes=False).query(queries)
 
 
+def to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``points`` (M, 3) [m] the distance [m] to the nearest point of ``mesh``'s
+    triangles and that triangle's index, (M,) each, exactly (libigl's AABB tree)."""
+    squared, faces, _ = igl.point_mesh_squared_distance(np.asarray(points, np.float64),
+                                                       np.asarray(mesh.vertices, np.float64),
+                                                       np.asarray(mesh.faces, np.int64))
+    return np.sqrt(squared), np.asarray(faces, np.int64)
+
+
 def _samples(mesh: trimesh.Trimesh, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     points, faces = trimesh.sample.sample_surface(mesh, count, seed=seed)
     return np.asarray(points), np.asarray(mesh.face_normals[faces])
@@ -60,10 +77,11 @@ def compare_meshes(predicted: trimesh.Trimesh, reference: trimesh.Trimesh, *, th
     if len(predicted.faces) == 0 or len(reference.faces) == 0:
         raise ValueError("cannot compare an empty mesh")
     pa, na = _samples(predicted, samples, seed)
-    pb, nb = _samples(reference, samples, seed)  # same seed: identical meshes give exactly 0
-    d_ab, i_ab = nearest(pb, pa)  # accuracy: predicted -> reference
-    d_ba, i_ba = nearest(pa, pb)  # completeness: reference -> predicted
-    return _scored(d_ab, d_ba, _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba]), threshold_m)
+    pb, nb = _samples(reference, samples, seed)
+    d_ab, f_ab = to_surface(pa, reference)  # accuracy: predicted -> reference
+    d_ba, f_ba = to_surface(pb, predicted)  # completeness: reference -> predicted
+    return _scored(d_ab, d_ba, _cosines(na, reference.face_normals[f_ab]), _cosines(nb, predicted.face_normals[f_ba]),
+                   threshold_m)
 
 
 def volumetric_iou(predicted: trimesh.Trimesh, inside_reference: Callable[[torch.Tensor], torch.Tensor],
@@ -185,14 +203,17 @@ def once_per_samples(observed: Callable) -> Callable:
     return remembered
 
 
+def _owner_of_face(scene) -> np.ndarray:
+    """The index of the object each face of ``scene.ground_truth_mesh()`` is of."""
+    return np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(scene.object_meshes())])
+
+
 def true_surface_samples(scene, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Area-uniform samples of a Scene's object surfaces: points (N, 3) [m], their face normals
     (N, 3) and the index of the object each lies on (N,), as :func:`evaluate_scene` scores them."""
-    meshes = scene.object_meshes()
-    reference = trimesh.util.concatenate(meshes)
-    owner_of_face = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
+    reference = scene.ground_truth_mesh()
     points, faces = trimesh.sample.sample_surface(reference, count, seed=seed)
-    return np.asarray(points), np.asarray(reference.face_normals[faces]), owner_of_face[faces]
+    return np.asarray(points), np.asarray(reference.face_normals[faces]), _owner_of_face(scene)[faces]
 
 
 def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = None, threshold_m: float = 0.005,
@@ -207,9 +228,10 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
         raise ValueError("cannot compare an empty mesh")
     pa, na = _samples(mesh, samples, seed)
     pb, nb, owner = true_surface_samples(scene, samples, seed)
-    d_ab, i_ab = nearest(pb, pa)
-    d_ba, i_ba = nearest(pa, pb)
-    cos_ab, cos_ba = _cosines(na, nb[i_ab]), _cosines(nb, na[i_ba])
+    reference, owner_of_face = scene.ground_truth_mesh(), _owner_of_face(scene)
+    d_ab, f_ab = to_surface(pa, reference)
+    d_ba, f_ba = to_surface(pb, mesh)
+    cos_ab, cos_ba = _cosines(na, reference.face_normals[f_ab]), _cosines(nb, mesh.face_normals[f_ba])
     full = with_scene_iou(_scored(d_ab, d_ba, cos_ab, cos_ba, threshold_m), mesh, scene, seed=seed)
     observed_metrics = observed_fraction = seen = None
     split = {}
@@ -218,13 +240,13 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
         observed_fraction = float(seen.mean())
         if seen.any():
             observed_metrics = _scored(d_ab, d_ba[seen], cos_ab, cos_ba[seen], threshold_m)
-        near_seen = seen[i_ab]
+        near_seen = seen[nearest(pb, pa)[1]]  # whether each predicted sample's nearest true sample is seen
         split = {f"accuracy_near_{key}_mm": float(d_ab[mask].mean() * 1e3) if mask.any() else None
                  for key, mask in (("observed", near_seen), ("unobserved", ~near_seen))}
         split.update({f"completeness_{key}_mm": float(d_ba[mask].mean() * 1e3) if mask.any() else None
                       for key, mask in (("observed", seen), ("unobserved", ~seen))})
     objects = {}
-    nearest_owner = owner[i_ab]
+    nearest_owner = owner_of_face[f_ab]
     for index, obj in enumerate(scene.objects):
         own, mine = owner == index, nearest_owner == index
         objects[obj.name] = ObjectMetrics(
@@ -238,24 +260,46 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
     return SceneMetrics(full, observed_metrics, observed_fraction, objects, **split)
 
 
+MAX_CROSSINGS = 4  # dielectric objects a foot's ray goes on through at most (specular_feet)
+_STEP_THROUGH_M = 1e-4  # a ray restarts this far past a face it crossed [m]
+
+
 def specular_feet(scene, acquisition, *, rays_per_side: int = 181, normal_cos: float = 0.9995,
-                  cell_m: float = 0.1) -> torch.Tensor:
+                  cell_m: float = 0.1, transmission: bool = False) -> torch.Tensor:
     """(F, 3) [m] points of ``scene``'s surface that some view of ``acquisition`` sees at
     normal incidence (within acos ``normal_cos``, 1.8 deg): the specular returns a room's
     range profiles hold, one per view and cell of ``cell_m``. Rays from each view's array
-    centre over +-74 deg in azimuth and elevation about its boresight's azimuth."""
+    centre over +-74 deg in azimuth and elevation about its boresight's azimuth; with
+    ``transmission`` they go on through dielectric objects (at most ``MAX_CROSSINGS``),
+    as the simulator's lines of sight do, so a wall seen through glass has its feet too."""
     origins = torch.cat([acquisition.tx_m, acquisition.rx_m], 1).double().mean(1)
     angles = torch.linspace(-1.3, 1.3, rays_per_side, dtype=torch.float64)
     a, e = torch.meshgrid(angles, angles, indexing="ij")
+    reach = float(scene.extent_m.max()) * 2
+    metal = torch.tensor([o.material.pec for o in scene.objects])
     feet = {}
     for view, origin in enumerate(origins):
         azimuth = torch.atan2(acquisition.boresight[view, 1], acquisition.boresight[view, 0]).double()
         d = torch.stack([torch.cos(e) * torch.cos(azimuth + a), torch.cos(e) * torch.sin(azimuth + a), torch.sin(e)],
                         -1).reshape(-1, 3)
-        trace = sphere_trace(scene.sdf, origin.expand_as(d), d, t_max=float(scene.extent_m.max()) * 2, max_steps=512)
-        normal = trace.hit & ((trace.normals * -d).sum(1) > normal_cos)
-        for point in trace.points[normal]:
-            feet.setdefault((view, *np.floor(point.numpy() / cell_m).astype(int)), point)
+        start = origin.expand_as(d).clone()
+        for _ in range(MAX_CROSSINGS + 1 if transmission else 1):
+            trace = sphere_trace(scene.sdf, start, d, t_max=reach, max_steps=512)
+            normal = trace.hit & ((trace.normals * -d).sum(1) > normal_cos)
+            for point in trace.points[normal]:
+                feet.setdefault((view, *np.floor(point.numpy() / cell_m).astype(int)), point)
+            through = (trace.hit & ~metal[scene.object_index(trace.points)]).nonzero().squeeze(1)
+            if not transmission or not len(through):
+                break
+            d = d[through]
+            inside = trace.points[through] + _STEP_THROUGH_M * d
+            own = scene.object_index(trace.points[through])
+            leave = torch.zeros(len(through), dtype=torch.float64)
+            for index in own.unique().tolist():  # the way out of each object, traced inside its own SDF
+                rays = (own == index).nonzero().squeeze(1)
+                sdf = scene.objects[index].sdf
+                leave[rays] = sphere_trace(lambda p: -sdf(p), inside[rays], d[rays], t_max=reach, max_steps=512).t
+            start = inside + (leave + _STEP_THROUGH_M)[:, None] * d
     return torch.stack(list(feet.values())) if feet else torch.zeros(0, 3, dtype=torch.float64)
 
 
