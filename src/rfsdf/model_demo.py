@@ -53,7 +53,9 @@ class ModelDemoSettings:
     (then the residual alone), not the residual after the primitives; ``scene_model``: a
     model file (None: the true scene, every length free, ``start_offset_m`` off, drawn with
     ``seed``, and with ``free_materials`` every material but the scene's calibration
-    reference)."""
+    reference); ``transmission``: lines of sight go on through dielectrics, in the simulator
+    and in the models' renderer alike (:mod:`rfsdf.radar.transmission`,
+    :mod:`rfsdf.recon.range_profile`)."""
 
     scene: str = "l-room"
     radar: str = "room-60g"
@@ -69,6 +71,7 @@ class ModelDemoSettings:
     rays_per_side: int = 48
     metric_samples: int = 50_000
     neural: NeuralProfileSettings = NeuralProfileSettings()
+    transmission: bool = False
 
 
 QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=40_000, rays_per_side=16,
@@ -77,7 +80,7 @@ QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=
 
 
 def _profile_settings(settings: ModelDemoSettings) -> ProfileSettings:
-    return ProfileSettings(rays_per_side=settings.rays_per_side)
+    return ProfileSettings(rays_per_side=settings.rays_per_side, transmission=settings.transmission)
 
 
 def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, start: SceneModel | None = None,
@@ -114,12 +117,12 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         measurements = read_measurements(out / "measurements.h5")
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                device=device, progress=progress)
+                                transmission=settings.transmission, device=device, progress=progress)
         write_measurements(out / "measurements.h5", measurements)
     timings["simulate_s"] = round(time.perf_counter() - clock, 2)
     acq = measurements.acquisition
     threshold = range_resolution_m(acq.bandwidth_hz) / 2
-    feet = specular_feet(scene, acq)
+    feet = specular_feet(scene, acq, transmission=settings.transmission)
     score = partial(_score, scene=scene, feet=feet, threshold_m=threshold, samples=settings.metric_samples,
                     seed=settings.seed,
                     observed=once_per_samples(partial(observed_mask, acquisition=acq, occluder=scene.sdf)))

@@ -52,10 +52,13 @@ from .app import (
                    "(undecided among metal, glass, concrete, plasterboard, wood), but the scene's calibration_reference.")
 @click.option("--max-samples", type=click.IntRange(1, 10**8), default=None,
               help="With --model primitive/hybrid/all: the simulator's facet budget (default 3,000,000; --quick 40,000).")
+@click.option("--transmission", is_flag=True,
+              help="With --model primitive/hybrid/all: lines of sight go on through dielectric objects (ITU-R P.2040 "
+                   "slabs) in the simulator and in the models' renderer; metal still stops them.")
 @one_line_errors
 def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
          relative: bool, device: str, model_kind: str, scene_model_path: Path | None, start_offset: float | None,
-         seed: int | None, free_materials: bool, max_samples: int | None):
+         seed: int | None, free_materials: bool, max_samples: int | None, transmission: bool):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
@@ -78,11 +81,13 @@ def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_mat
         if free_materials and scene_model_path is not None:
             raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _model_demo(out, scene_name or "objects", radar_name, quick, model_kind, scene_model_path,
-                    0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples, device)
+                    0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples,
+                    transmission, device)
         return
     given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
                                       ("--start-offset", start_offset), ("--free-materials", free_materials or None),
-                                      ("--max-samples", max_samples)) if value is not None]
+                                      ("--max-samples", max_samples), ("--transmission", transmission or None))
+             if value is not None]
     if given:
         raise click.UsageError(f"{', '.join(given)}: only with --model primitive, hybrid or all")
     settings = demo_settings(radar_name, quick=quick)
@@ -102,7 +107,7 @@ def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_mat
 
 def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_kind: str,
                 scene_model_path: Path | None, start_offset: float, seed: int, free_materials: bool,
-                max_samples: int | None, device: str) -> None:
+                max_samples: int | None, transmission: bool, device: str) -> None:
     """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo);
     ``device`` runs the simulation."""
     import dataclasses
@@ -112,7 +117,8 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
 
     settings = dataclasses.replace(QUICK_MODELS if quick else ModelDemoSettings(), scene=scene_name, radar=radar_name,
                                    start_offset_m=start_offset, seed=seed, free_materials=free_materials,
-                                   scene_model=None if scene_model_path is None else str(scene_model_path))
+                                   scene_model=None if scene_model_path is None else str(scene_model_path),
+                                   transmission=transmission)
     if max_samples is not None:
         settings = dataclasses.replace(settings, max_surface_samples=max_samples)
     result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), device=device,

@@ -35,6 +35,14 @@ unknown) by least squares, both blurred by a Gaussian whose width shrinks from
 off still overlaps its own peak at the start. What this model leaves out: multipath (a
 wall's image of another wall, the corner's double bounce) and range ambiguity (returns
 beyond c / (2 delta f) fold back); both would enter as extra terms of the model's profile.
+
+With ``transmission`` (``ProfileSettings``), as the simulator's (:mod:`rfsdf.radar.transmission`),
+a ray that hits a dielectric goes on through it: the crossing is a slab of the chord's
+thickness times the incidence cosine, its own vote is the slab's reflection where the slab
+is thin (its round trip under the range resolution), and every hit behind it votes with
+|T|^4 of its power (T out and back) from farther by twice the slab's excess path. Metal
+stops the ray. The slabs' factors are held per step (their gradients left out), the hits'
+distances behind them carry theirs as any hit's.
 """
 
 from __future__ import annotations
@@ -53,6 +61,7 @@ from ..materials import class_permittivities, class_reflectivities, mixture_fres
 from ..progress import progress_bar
 from ..radar import SPEED_OF_LIGHT, Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
+from ..slab import excess_path, slab_coefficients
 from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
 from .schedules import exponential_decay
@@ -65,6 +74,8 @@ _HANN_FWHM = 1.44  # Hann window's main-lobe width at half power, in units of c 
 # of its distance): a face seen edge-on has its foot beyond its edge and no specular return
 FOOT_TOLERANCE = 0.02
 _NEGLIGIBLE = 1e-6  # votes below this share of the strongest are dropped (most hits are far off specular)
+MAX_CROSSINGS = 4  # with transmission: dielectric objects a ray goes on through at most
+_STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
 
 
 def path_axis(measurements: Measurements, step_m: float, near_m: float) -> torch.Tensor:
@@ -123,11 +134,13 @@ def _beam_directions(boresight: torch.Tensor, per_side: int, half_angle_rad: flo
 
 @dataclass(frozen=True)
 class _Hits:
-    """The ray grid's hits on a model (Q of them): each one's ``view``, range ``t`` [m],
-    incidence cosine ``cos``, outward ``normal`` (Q, 3), ``points`` (Q, 3) [m], whether its
-    tangent plane's foot lies ``on_surface``, the two-way antenna amplitude ``pattern`` toward
-    the foot (per element, squared in a channel), and the share of the specular ``lobe``
-    its ray stands for."""
+    """The ray grid's hits on a model (Q of them): each one's ``view``, range ``t`` [m]
+    along its ray, incidence cosine ``cos``, outward ``normal`` (Q, 3), ``points`` (Q, 3)
+    [m], whether its tangent plane's foot lies ``on_surface``, the two-way antenna amplitude
+    ``pattern`` toward the foot (per element, squared in a channel), the share of the
+    specular ``lobe`` its ray stands for, its ``reflectivity`` |Gamma(0)| (the material's,
+    or a thin slab's |R|), and with transmission the ``power`` |T|^4 of the slabs its ray
+    crossed before it (1 in the clear) and their two-way excess path ``delay_m`` [m]."""
 
     view: torch.Tensor
     t: torch.Tensor
@@ -137,49 +150,94 @@ class _Hits:
     on_surface: torch.Tensor
     pattern: torch.Tensor
     lobe: torch.Tensor
+    reflectivity: torch.Tensor
+    power: torch.Tensor
+    delay_m: torch.Tensor
 
 
-def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: float, t_max: float) -> _Hits:
-    """Trace each view's ray grid (module docstring) against ``field``'s frozen SDF."""
+def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: float, t_max: float,
+          transmission: bool = False) -> _Hits:
+    """Trace each view's ray grid (module docstring) against ``field``'s frozen SDF, on
+    through dielectrics with ``transmission``."""
     views = acq.tx_m.shape[0]
     beams = [_beam_directions(acq.boresight[v], rays_per_side, half_angle_rad) for v in range(views)]
     directions = torch.cat([d for d, _ in beams])
     solid_angle = torch.cat([w for _, w in beams])
-    view = torch.arange(views).repeat_interleave(rays_per_side ** 2)
-    origins = torch.cat([acq.tx_m, acq.rx_m], dim=1).double().mean(1)[view]
+    ray_view = torch.arange(views).repeat_interleave(rays_per_side ** 2)
+    origins = torch.cat([acq.tx_m, acq.rx_m], dim=1).double().mean(1)[ray_view]
     frozen = field.frozen_sdf()
     step = field.trace_step  # below 1 where f is no exact distance (the hybrid's residual)
-    trace = sphere_trace(lambda p: step * frozen(p), origins, directions, eps=1e-5 * step,
-                         max_steps=int(256 / step), t_max=t_max)
-    hit = trace.hit
-    d, t, view = directions[hit], trace.t[hit], view[hit]
-    points = origins[hit] + t[:, None] * d
+    eps = class_permittivities(field.materials, acq.center_frequency_hz)
+    resolution = SPEED_OF_LIGHT / (2 * acq.bandwidth_hz)
+    rays = torch.arange(len(directions))
+    travelled = torch.zeros(len(directions), dtype=torch.float64)  # along each ray, to where its trace starts
+    factor = torch.ones(len(directions), dtype=torch.complex128)  # T of the slabs crossed so far
+    excess = torch.zeros(len(directions), dtype=torch.float64)
+    found: list[tuple] = []  # (rays, t, |T|, excess, reflectivity) of each round's hits
+    for _ in range(MAX_CROSSINGS + 1 if transmission else 1):
+        trace = sphere_trace(lambda p: step * frozen(p), origins[rays] + travelled[rays, None] * directions[rays],
+                             directions[rays], eps=1e-5 * step, max_steps=int(256 / step),
+                             t_max=t_max - travelled[rays])
+        rays, t = rays[trace.hit], travelled[rays[trace.hit]] + trace.t[trace.hit]
+        points = origins[rays] + t[:, None] * directions[rays]
+        with torch.no_grad():
+            probabilities = field.material(points)
+            reflectivity = mixture_fresnel(torch.ones_like(t), probabilities, eps, "mean").abs()
+        found.append([rays, t, factor[rays].abs(), excess[rays].clone(), reflectivity])
+        if not transmission:
+            break
+        with torch.no_grad():
+            slab = eps[probabilities.argmax(1)]
+            inside = torch.isfinite(slab.real).nonzero().squeeze(1)  # metal stops the ray
+            if not len(inside):
+                break
+            d, entry = directions[rays[inside]], points[inside]
+            cos = (-(torch.nn.functional.normalize(gradient(frozen, entry), dim=1) * d).sum(1)).clamp(1e-3, 1)
+            leave = sphere_trace(lambda p: -step * frozen(p), entry + _STEP_IN_M * d, d, eps=1e-5 * step,
+                                 max_steps=int(256 / step), t_max=t_max - t[inside])
+            thickness = (leave.t + _STEP_IN_M) * cos
+            r, tr = slab_coefficients(cos, slab[inside], thickness, acq.center_frequency_hz, "mean")
+            thin = leave.hit & (2 * thickness * slab[inside].real.clamp(min=1).sqrt() < resolution)
+            found[-1][4][inside[thin]] = r[thin].abs()  # a thin sheet reflects as its slab
+            crossing = rays[inside[leave.hit]]
+            factor[crossing] *= tr[leave.hit]
+            excess[crossing] += excess_path(cos[leave.hit], slab[inside][leave.hit].real, thickness[leave.hit])
+            travelled[crossing] = t[inside[leave.hit]] + leave.t[leave.hit] + 2 * _STEP_IN_M
+            rays = crossing
+        if not len(rays):
+            break
+    ray, t, transmitted, delay, reflectivity = (torch.cat(column) for column in zip(*found))
+    d, view = directions[ray], ray_view[ray]
+    points = origins[ray] + t[:, None] * d
     normal = torch.nn.functional.normalize(gradient(frozen, points), dim=1)
     cos = (-(normal * d).sum(1)).clamp(1e-3, 1)  # grad f . d < 0 coming from outside
     with torch.no_grad():
-        foot = origins[hit] - (t * cos)[:, None] * normal  # the plane's point nearest the array
+        foot = origins[ray] - (t * cos)[:, None] * normal  # the plane's point nearest the array
         on_surface = frozen(foot).abs() < FOOT_TOLERANCE * t * cos
         pattern = (-normal * acq.boresight.double()[view]).sum(1).clamp(min=0) ** acq.pattern_exponent
-        lobe = cos ** (2 * SPECULAR_EXPONENT) * solid_angle[hit] * (2 * SPECULAR_EXPONENT + 1) / (2 * math.pi)
-    return _Hits(view, t, cos.detach(), normal.detach(), points, on_surface, pattern, lobe)
+        lobe = cos ** (2 * SPECULAR_EXPONENT) * solid_angle[ray] * (2 * SPECULAR_EXPONENT + 1) / (2 * math.pi)
+    return _Hits(view, t, cos.detach(), normal.detach(), points, on_surface, pattern, lobe, reflectivity,
+                 transmitted ** 4, 2 * delay)
 
 
 def model_profiles(field: PrimitiveField, measurements: Measurements, path_m: torch.Tensor, *, rays_per_side: int,
-                   half_angle_rad: float, sigma_m: float) -> torch.Tensor:
+                   half_angle_rad: float, sigma_m: float, transmission: bool = False) -> torch.Tensor:
     """(V, P) the model's range-profile power at ``path_m`` (module docstring), differentiable
-    in the field's free parameters through the hits' tangent-plane distances."""
+    in the field's free parameters through the hits' tangent-plane distances; with
+    ``transmission`` rays go on through dielectrics."""
     acq = measurements.acquisition
-    eps = class_permittivities(field.materials, acq.center_frequency_hz)
-    hits = _hits(field, acq, rays_per_side=rays_per_side, half_angle_rad=half_angle_rad, t_max=float(path_m[-1]) / 2)
+    hits = _hits(field, acq, rays_per_side=rays_per_side, half_angle_rad=half_angle_rad, t_max=float(path_m[-1]) / 2,
+                 transmission=transmission)
     value = field.sdf(hits.points)  # ~0, but it moves with the parameters
     # the tangent plane's distance t cos moves by df/dtheta (implicit differentiation of f(o + t d) = 0)
     distance = hits.t * hits.cos + (value - value.detach())
     with torch.no_grad():
-        normal_gamma = mixture_fresnel(torch.ones_like(hits.cos), field.material(hits.points), eps, "mean").abs()
-        weight = (normal_gamma * hits.pattern ** 2 / (2 * hits.t * hits.cos)) ** 2 * hits.lobe * hits.on_surface
+        weight = ((hits.reflectivity * hits.pattern ** 2 / (2 * hits.t * hits.cos)) ** 2 * hits.lobe * hits.on_surface
+                  * hits.power)
     keep = weight > _NEGLIGIBLE * weight.max() if len(weight) else weight > 0
     spread = math.hypot(sigma_m, _psf_sigma_m(measurements))
-    return _splat(2 * distance[keep], weight[keep], hits.view[keep], path_m, spread, acq.tx_m.shape[0])
+    return _splat(2 * distance[keep] + hits.delay_m[keep], weight[keep], hits.view[keep], path_m, spread,
+                  acq.tx_m.shape[0])
 
 
 def image_source_reflectivities(measurements: Measurements, field: PrimitiveField, *,
@@ -200,7 +258,8 @@ def image_source_reflectivities(measurements: Measurements, field: PrimitiveFiel
     window = _window(len(acq.frequencies_hz)).sum()  # the data profile's peak over one channel's amplitude
     resolution = SPEED_OF_LIGHT / acq.bandwidth_hz  # in path
     hits = _hits(field, acq, rays_per_side=settings.rays_per_side,
-                 half_angle_rad=math.radians(settings.half_angle_deg), t_max=float(path[-1]) / 2)
+                 half_angle_rad=math.radians(settings.half_angle_deg), t_max=float(path[-1]) / 2,
+                 transmission=settings.transmission)
     with torch.no_grad():
         owner = torch.stack([sdf(hits.points) for sdf in field.object_sdfs(detach=True)]).abs().argmin(0)
     ratios: dict[int, list[float]] = {}
@@ -211,10 +270,11 @@ def image_source_reflectivities(measurements: Measurements, field: PrimitiveFiel
                 continue
             best = mine[hits.cos[mine].argmax()]
             distance = float(hits.t[best] * hits.cos[best])
-            gate = (path - 2 * distance).abs() <= resolution
+            gate = (path - 2 * distance - hits.delay_m[best]).abs() <= resolution
             if not gate.any():
                 continue
-            unit = float(window * hits.pattern[best] ** 2 / (2 * distance))
+            # the image source's peak, dimmed by the slabs on its way (|T|^2 in amplitude)
+            unit = float(window * hits.pattern[best] ** 2 / (2 * distance) * hits.power[best].sqrt())
             ratios.setdefault(index, []).append(float(data[v, gate].max()) / unit)
     seen = {index: float(torch.tensor(values).median()) for index, values in ratios.items()}
     free = {m.index for m in field.model.materials}
@@ -271,13 +331,15 @@ def profile_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 class ProfileSettings:
     """How the profile fit samples: ``rays_per_side`` squared rays a view over a square of
     tangent-plane angles up to ``half_angle_deg`` off boresight, profiles ``step_m`` apart in
-    path from 2 ``near_m``; the blur shrinks from ``blur_start_m`` [m path] to 0."""
+    path from 2 ``near_m``; the blur shrinks from ``blur_start_m`` [m path] to 0;
+    ``transmission``: rays go on through dielectrics (module docstring)."""
 
     rays_per_side: int = 48
     half_angle_deg: float = 70.0
     step_m: float = 0.005
     near_m: float = 0.5
     blur_start_m: float = 0.4
+    transmission: bool = False
 
 
 def fit_primitive_profiles(measurements: Measurements, model: SceneModel, *, steps: int = 150, lr: float = 0.01,
@@ -315,7 +377,8 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
     for step in progress_bar(range(steps), desc=desc, enabled=progress):
         width = settings.blur_start_m * (1 - step / max(steps - 1, 1)) if blur else 0.0
         predicted = model_profiles(field, measurements, path, rays_per_side=settings.rays_per_side,
-                                   half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=width)
+                                   half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=width,
+                                   transmission=settings.transmission)
         loss = profile_loss(predicted, _blur(data, width, settings.step_m))
         optimizer.zero_grad(set_to_none=True)
         (loss if prior is None else loss + prior()).backward()
