@@ -61,6 +61,7 @@ from ..materials import class_permittivities, class_reflectivities, mixture_fres
 from ..progress import progress_bar
 from ..radar import SPEED_OF_LIGHT, Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
+from ..radar.waveform import range_resolution_m
 from ..slab import excess_path, slab_coefficients
 from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
@@ -168,7 +169,7 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
     frozen = field.frozen_sdf()
     step = field.trace_step  # below 1 where f is no exact distance (the hybrid's residual)
     eps = class_permittivities(field.materials, acq.center_frequency_hz)
-    resolution = SPEED_OF_LIGHT / (2 * acq.bandwidth_hz)
+    resolution = range_resolution_m(acq.bandwidth_hz)  # a slab thinner (round trip) reflects as one
     rays = torch.arange(len(directions))
     travelled = torch.zeros(len(directions), dtype=torch.float64)  # along each ray, to where its trace starts
     factor = torch.ones(len(directions), dtype=torch.complex128)  # T of the slabs crossed so far
