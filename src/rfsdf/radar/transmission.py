@@ -92,16 +92,15 @@ def through_objects(scene: Scene, points: torch.Tensor, normals: torch.Tensor, c
                     frequency_hz: float, polarization: str = "mean") -> tuple[torch.Tensor, torch.Tensor]:
     """Each surface sample's (Q, 3) [m], normals (Q, 3), two-way line of sight to
     ``centre_m`` (3,) [m] through the scene's objects (:func:`line_of_sight`): (Q,)
-    complex128, T^2 of the slabs crossed at ``frequency_hz`` with their excess phase there
-    taken out (0 for samples facing away or behind metal), and (Q,) float64 the two-way
-    excess path [m], which goes back in as a delay at every frequency (:func:`excess_delay`;
-    a slab's T is taken as flat over the band, its delay is not)."""
+    complex128, T^2 of the slabs crossed at ``frequency_hz``, their excess path's phase
+    there included (0 for samples facing away or behind metal), and (Q,) float64 the
+    two-way excess path [m], whose delay relative to ``frequency_hz`` goes in at every
+    frequency (:func:`excess_delay`; the rest of T is taken as flat over the band)."""
     points, normals = points.double(), normals.double()
     facing = (((centre_m.to(points) - points) * normals).sum(1) > 0).nonzero().squeeze(1)
     sight = line_of_sight(scene, points[facing], normals[facing], centre_m, frequency_hz, polarization=polarization)
-    k = 2 * np.pi * frequency_hz / SPEED_OF_LIGHT
     factor = torch.zeros(len(points), dtype=torch.complex128, device=points.device)
-    factor[facing] = sight.factor**2 * torch.exp(2j * k * sight.excess_m)
+    factor[facing] = sight.factor**2
     excess = torch.zeros(len(points), dtype=torch.float64, device=points.device)
     excess[facing] = 2 * sight.excess_m
     return factor, excess
@@ -109,8 +108,8 @@ def through_objects(scene: Scene, points: torch.Tensor, normals: torch.Tensor, c
 
 def excess_delay(frequencies_hz: torch.Tensor, centre_hz: float, excess_m: torch.Tensor) -> torch.Tensor:
     """(K, Q) complex128: exp(-j (k - k_c) x), the delay of each sample's two-way excess path
-    x (Q,) [m] at each frequency (K,) [Hz] over the phase at the centre frequency, which
-    :func:`through_objects`'s factor carries."""
+    x (Q,) [m] at each frequency (K,) [Hz] over its phase at the centre frequency, which
+    :func:`through_objects`'s factor carries (in T's own phase)."""
     k = (2 * np.pi / SPEED_OF_LIGHT) * (frequencies_hz.to(excess_m.device, torch.float64) - centre_hz)
     return torch.exp(-1j * k[:, None] * excess_m.double()[None])
 
