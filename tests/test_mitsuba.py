@@ -17,9 +17,11 @@ from click.testing import CliRunner
 
 from rfsdf.cli import main
 from rfsdf.errors import RfsdfError
+from rfsdf.geometry import MeshSDF
 from rfsdf.materials import EPS0, MATERIALS, get_material
 from rfsdf.mitsuba.write import export_scene, write_ply
 from rfsdf.radar import simulate
+from rfsdf.recon.primitive import PrimitiveField
 from rfsdf.scene import Scene, build_shape, load_scene, scene_presets
 from rfsdf.scene_model import SceneModel, analytic_spec
 from rfsdf.scene_spec import SceneSpec
@@ -178,6 +180,27 @@ def test_meshes_that_are_boxes_are_written_as_analytic_boxes_with_the_same_sdf_a
     model = SceneModel.from_scene(scene, 0.1, seed=0)
     assert {p.name.split(".")[0] for p in model.free} == {"room", "cabinet", "board"}
     assert model.values_in(analytic) is not None  # the truth of every free parameter
+    # the room's 2 cm wall: its start moved as one piece (offsets of 10 cm drawn apart for
+    # its two boxes would have taken the wall away), and meshed exactly (two boxes, 24 triangles)
+    named = {p.name: np.asarray(p.start) for p in model.free}
+    np.testing.assert_allclose(named["room.children[0].half_extents_m"] - named["room.children[1].half_extents_m"],
+                               0.02, atol=1e-12)
+    np.testing.assert_array_equal(named["room.children[0].center_m"], named["room.children[1].center_m"])
+    assert model.shell_ties() == [(0, 2), (1, 3)]
+    room = exact.object_meshes()[0]
+    assert len(room.faces) == 24 and room.is_watertight
+    assert room.area == pytest.approx(2 * (4.04 * 3.04 + 4.04 * 2.54 + 3.04 * 2.54) + 2 * (4 * 3 + 4 * 2.5 + 3 * 2.5))
+    np.testing.assert_allclose(MeshSDF(room)(points).numpy(), exact.objects[0].sdf(points).detach().numpy(), atol=1e-9)
+    # in the fit the outer box follows the inner one: its faces' gradient goes to the inner's lengths
+    field = PrimitiveField(model)
+    centre, outer_half = named["room.children[0].center_m"], named["room.children[0].half_extents_m"]
+    beyond = torch.from_numpy((centre + [outer_half[0] + 0.01, 0.0, 0.0])[None])  # 1 cm outside its +x face
+    field.sdf(beyond).sum().backward()
+    assert field.values[0].grad is None and field.values[2].grad.tolist() == pytest.approx([-1.0, 0.0, 0.0])
+    with torch.no_grad():
+        field.values[2].add_(torch.tensor([0.05, -0.03, 0.0], dtype=torch.float64))
+    field.clamp_()
+    np.testing.assert_allclose((field.values[0] - field.values[2]).detach().numpy(), 0.02, atol=1e-12)
 
 
 def test_a_radar_inside_a_wall_is_one_line(tmp_path):

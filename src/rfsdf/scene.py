@@ -138,9 +138,9 @@ def surface_mesh(spec: MeshShapeSpec, base_dir: Path = Path(".")) -> trimesh.Tri
     return mesh
 
 
-def transformed(surface: trimesh.Trimesh, spec: MeshShapeSpec) -> trimesh.Trimesh:
-    """A copy of a mesh shape's :func:`surface_mesh` ``surface`` moved by the shape's
-    ``transform`` (scale, rotation, then translation), where the scene has it."""
+def transformed(surface: trimesh.Trimesh, spec: ShapeSpec) -> trimesh.Trimesh:
+    """A copy of ``surface`` (a mesh shape's :func:`surface_mesh`, or any shape's own) moved
+    by the shape's ``transform`` (scale, rotation, then translation), where it has one."""
     surface = surface.copy()
     if spec.transform is not None:
         tf = spec.transform
@@ -149,6 +149,27 @@ def transformed(surface: trimesh.Trimesh, spec: MeshShapeSpec) -> trimesh.Trimes
         matrix[:3, 3] = tf.translate_m
         surface.apply_transform(matrix)
     return surface
+
+
+def shell_mesh(shape: ShapeSpec) -> trimesh.Trimesh | None:
+    """The exact triangles of a shell (a box less a smaller box about the same centre,
+    :func:`box_table`'s): both boxes, the inner one's faces turned in, through the shape's
+    transform; None for any other shape. Marching cubes of a wall 1 cm thick around a
+    10 x 10 x 5 m room needs cells of 3 mm over its 400 m^2 (it filled the machine)."""
+    def box(spec) -> trimesh.Trimesh:
+        return trimesh.creation.box(extents=2 * np.asarray(spec.half_extents_m),
+                                    transform=trimesh.transformations.translation_matrix(spec.center_m))
+
+    children = getattr(shape, "children", None)
+    if shape.type != "difference" or len(children) != 2 or any(c.type != "box" or c.transform for c in children):
+        return None
+    outer, inner = children
+    if tuple(outer.center_m) != tuple(inner.center_m) or not (
+            np.asarray(outer.half_extents_m) > np.asarray(inner.half_extents_m)).all():
+        return None
+    cavity = box(inner)
+    cavity.invert()
+    return transformed(trimesh.util.concatenate([box(outer), cavity]), shape)
 
 
 def mesh_reading(spec: MeshShapeSpec, surface: trimesh.Trimesh) -> str:
@@ -350,9 +371,11 @@ class Scene:
 
     # Meshes and sampling -------------------------------------------------------------
     def object_meshes(self) -> list[trimesh.Trimesh]:
-        """One watertight mesh per object (the file's for mesh objects, marching cubes otherwise)."""
+        """One watertight mesh per object (the file's for mesh objects, a shell's own
+        triangles, marching cubes otherwise)."""
         if self._meshes is None:
-            self._meshes = [o.mesh if o.mesh is not None else self._mesh_of(o) for o in self.objects]
+            self._meshes = [o.mesh if o.mesh is not None else self._mesh_of(o, spec.shape)
+                            for o, spec in zip(self.objects, self.spec.objects)]
         return self._meshes
 
     def _coarse_grid(self, resolution: int) -> geo.Grid:
@@ -380,11 +403,15 @@ class Scene:
         wall; inf for an object outside the bounds)."""
         return 2 * _half_thickness(obj.sdf, self._near_points(obj, _COARSE_RESOLUTION))
 
-    def _mesh_of(self, obj: SceneObject) -> trimesh.Trimesh:
-        """Marching cubes of an analytic object: ``_MESH_RESOLUTION`` cells along its longest
+    def _mesh_of(self, obj: SceneObject, shape: ShapeSpec) -> trimesh.Trimesh:
+        """A shell's own triangles (:func:`shell_mesh`), else
+        marching cubes of an analytic object: ``_MESH_RESOLUTION`` cells along its longest
         edge, or, where its thinnest part is thinner than ``_CELLS_ACROSS`` such cells (a
         plasterboard sheet, a window pane in a room), cells that fit that many times across
         it, evaluated near its surface only (:func:`~rfsdf.mesh.extract_mesh_near_surface`)."""
+        exact = shell_mesh(shape)
+        if exact is not None:
+            return exact
         near = self._near_points(obj, _COARSE_RESOLUTION)
         lower, upper = self._object_box(near)
         sdf64 = lambda p: obj.sdf(p.double())  # noqa: E731 - evaluate in float64 for a clean surface

@@ -216,12 +216,20 @@ class SceneModel:
                 if obj["name"] != table.get("calibration_reference"):
                     obj["material"] = {"free": True}
 
-        def free_lengths(node):
+        def free_lengths(node, offsets: dict | None = None):
+            """Free every length under ``node``, each moved by a fresh random offset, or by
+            ``offsets`` (key: offset) where given; returns the offsets drawn at this level."""
+            drawn = {}
             if isinstance(node, dict):
+                if _is_shell(node):  # a wall's two faces move as one: inner first, the outer by its offsets
+                    free_lengths(node["children"][0], free_lengths(node["children"][1]))
+                    return drawn
                 for key, value in list(node.items()):
                     if key in POSITION_FIELDS + SIZE_FIELDS and value is not None and not _is_parameter_table(value):
                         truth = np.atleast_1d(np.asarray(value, dtype=float))
-                        start = truth + rng.uniform(-offset_m, offset_m, size=truth.shape)
+                        drawn[key] = (offsets[key] if offsets and key in offsets
+                                      else rng.uniform(-offset_m, offset_m, size=truth.shape))
+                        start = truth + drawn[key]
                         if key in SIZE_FIELDS:
                             start = np.maximum(start, truth / 2)
                         margin = 2 * offset_m
@@ -232,6 +240,7 @@ class SceneModel:
             elif isinstance(node, list):
                 for item in node:
                     free_lengths(item)
+            return drawn
 
         for obj in table["objects"]:
             free_lengths(obj["shape"])
@@ -289,6 +298,23 @@ class SceneModel:
             return None
         return [spec.material(spec.objects[m.index].material).name for m in self.materials]
 
+    def shell_ties(self) -> list[tuple[int, int]]:
+        """(outer, inner) indices into :attr:`free` of each length a shell's two boxes both
+        free (:func:`_is_shell`): the fit moves the outer with the inner, their start's
+        difference kept, so that a thin wall neither thickens nor vanishes (its outer faces,
+        unseen from inside a room, would hold while the inner ones pass them)."""
+        index = {p.path: i for i, p in enumerate(self.free)}
+        ties = []
+        for i, parameter in enumerate(self.free):
+            path = parameter.path
+            if len(path) < 3 or path[-3] != "children" or path[-2] != 0:
+                continue
+            partner = index.get(path[:-2] + (1, path[-1]))
+            shape, _ = self.node(path[:-2])
+            if partner is not None and _is_shell(shape.model_dump(mode="json")):
+                ties.append((i, partner))
+        return ties
+
     def node(self, path: tuple):
         """(spec node, field name) that ``path`` points at in :attr:`spec`."""
         node = self.spec
@@ -308,6 +334,20 @@ def analytic_spec(scene: Scene) -> SceneSpec:
         if obj.reading is not None and obj.reading.box:  # the box the scene found at load (scene.box_table)
             row["shape"] = obj.reading.box_shape
     return SceneSpec.model_validate(table)
+
+
+def _is_shell(node: dict) -> bool:
+    """Whether a shape table is a shell: a box less a box about the same centre, smaller
+    along every axis (:func:`~rfsdf.scene.box_table`'s), whose start must keep its wall:
+    moved apart by offsets of 15 cm, the inner box of a 1 cm wall left the outer one and
+    took that wall away (``box_knife``: three of its four walls, so their lengths had no gradient)."""
+    children = node.get("children") if node.get("type") == "difference" else None
+    if not children or len(children) != 2 or any(c.get("type") != "box" for c in children):
+        return False
+    outer, inner = children
+    if outer.get("center_m") != inner.get("center_m") or outer.get("transform") != inner.get("transform"):
+        return False
+    return bool((np.asarray(outer["half_extents_m"], float) > np.asarray(inner["half_extents_m"], float)).all())
 
 
 def _dotted(path: tuple) -> str:

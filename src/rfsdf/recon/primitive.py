@@ -65,11 +65,21 @@ class PrimitiveField(torch.nn.Module):
         self.logits = torch.nn.ParameterList(
             [torch.nn.Parameter(_start_logits(m)) for m in model.materials])  # one (classes,) per free material
         self._columns = [torch.tensor([self.materials.index(c) for c in m.classes]) for m in model.materials]
+        # a shell's outer box follows its inner one (SceneModel.shell_ties): outer = inner + their start's difference
+        self._ties = [(outer, inner, (self.values[outer] - self.values[inner]).detach().clone())
+                      for outer, inner in model.shell_ties()]
+
+    def _current(self) -> list[torch.Tensor]:
+        """The free parameters' values, a tied one its leader's plus its offset (differentiable in the leader)."""
+        values = list(self.values)
+        for outer, inner, offset in self._ties:
+            values[outer] = self.values[inner] + offset.to(self.values[inner].device)
+        return values
 
     def object_sdfs(self, *, detach: bool = False) -> list:
         """Each object's SDF at the current parameter values (held constant with ``detach``)."""
         overrides = {}
-        for parameter, value in zip(self.model.free, self.values):
+        for parameter, value in zip(self.model.free, self._current()):
             node, field = self.model.node(parameter.path)
             overrides[(id(node), field)] = value.detach().clone() if detach else value
         return [build_shape(o.shape, self.model.base_dir, overrides) for o in self.model.spec.objects]
@@ -106,9 +116,11 @@ class PrimitiveField(torch.nn.Module):
 
     @torch.no_grad()
     def clamp_(self) -> None:
-        """Every free parameter back inside its bounds."""
+        """Every free parameter back inside its bounds, a tied one at its leader plus its offset."""
         for value, lower, upper in zip(self.values, self.lower, self.upper):
             value.copy_(torch.maximum(torch.minimum(value, upper.to(value.device)), lower.to(value.device)))
+        for outer, inner, offset in self._ties:
+            self.values[outer].copy_(self.values[inner] + offset.to(self.values[inner].device))
 
     def fitted(self) -> list[list[float]]:
         """The free parameters' current values, as lists of floats."""
