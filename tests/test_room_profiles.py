@@ -64,6 +64,23 @@ def test_a_walls_profile_peaks_at_its_image_source_in_data_and_model(room_data):
     assert SPEED_OF_LIGHT / acq.bandwidth_hz / 2 == pytest.approx(0.0214, abs=1e-4)  # room-60g's range resolution
 
 
+def test_a_return_nearer_than_the_profiles_start_does_not_wrap_into_their_end(room_data):
+    """A profile repeats every c / delta f: a return at 4 cm of path (a sheet the array
+    stands by) would peak again at c / delta f + 4 cm. The axis stops 2 near_m short of the
+    period, so it holds only a wall's own peak at 3 m, not the near return 30 dB over it."""
+    data = room_data[1]
+    f = data.acquisition.frequencies_hz.double()
+    unambiguous = SPEED_OF_LIGHT / float(f[1] - f[0])
+    path = path_axis(data, 0.0025, 0.5)
+    assert float(path[0]) == 1.0 and unambiguous - 1.0 - 0.0025 <= float(path[-1]) < unambiguous - 1.0
+    def echo(path_m):  # a point's spectrum at this round-trip path, every channel alike
+        return torch.exp(-2j * math.pi * f * path_m / SPEED_OF_LIGHT).expand(data.data.shape)
+    y = dataclasses.replace(data, data=(31.6 * echo(0.04) + echo(3.0)).to(data.data.dtype))
+    profile = data_profiles(y, path)[0]
+    assert abs(float(path[profile.argmax()]) - 3.0) < 0.005
+    assert float(profile[path > unambiguous - 1.2].max()) < 1e-3 * float(profile.max())
+
+
 def test_the_profile_path_gradient_is_the_sdfs_parameter_derivative(room_data):
     """Moving the east wall's centre by dx moves its votes' distance by dx: the loss's
     derivative by autograd equals a central difference of 0.1 mm of the same loss with the

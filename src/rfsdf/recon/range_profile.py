@@ -80,11 +80,16 @@ _STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
 
 
 def path_axis(measurements: Measurements, step_m: float, near_m: float) -> torch.Tensor:
-    """(P,) round-trip path lengths [m] from 2 ``near_m`` to the unambiguous path c / delta f,
-    ``step_m`` apart."""
+    """(P,) round-trip path lengths [m] from 2 ``near_m`` to 2 ``near_m`` short of the
+    unambiguous path c / delta f, ``step_m`` apart: a profile repeats every c / delta f, so a
+    return nearer than ``near_m`` (a sheet the array stands by) shows again at the top of the
+    period, where no model's return falls (on ``box_knife`` the knife 4 cm from the diagonal
+    views stood there 28 dB over their strongest wall)."""
     f = measurements.acquisition.frequencies_hz
-    unambiguous = SPEED_OF_LIGHT / float(f[1] - f[0]) if len(f) > 1 else 2 * near_m + step_m
-    return torch.arange(2 * near_m, unambiguous, step_m, dtype=torch.float64)
+    if len(f) < 2:
+        return torch.arange(2 * near_m, 2 * near_m + step_m, step_m, dtype=torch.float64)
+    unambiguous = SPEED_OF_LIGHT / float(f[1] - f[0])
+    return torch.arange(2 * near_m, max(unambiguous - 2 * near_m, 2 * near_m + step_m), step_m, dtype=torch.float64)
 
 
 def _window(count: int) -> torch.Tensor:
