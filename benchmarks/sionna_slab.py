@@ -12,7 +12,9 @@ plate's in each tool against P.2040's |T|^2 and |R|, where each tool puts the pl
 correlation of the two tools' gated profiles after one complex gain. Sionna's path delays
 are geometric (its sheet has no thickness, and T carries the slab's whole phase at the
 band's centre), so its plate stands where the bare one did; the correlation is also given
-with Sionna's channel delayed by the slab's two-way excess path, the one convention apart.
+with Sionna's channel delayed by the slab's two-way excess path, the one convention apart,
+and the whole channels' correlation beside the one those conventions leave between the
+sheet's and the plate's paths (``channel_correlation_conventions``, from the gated peaks).
 
     python benchmarks/sionna_slab.py --sionna-python /path/to/venv-with-sionna/bin/python
 
@@ -91,6 +93,16 @@ def _correlation(a: np.ndarray, b: np.ndarray) -> float:
     return float(abs(np.vdot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))
 
 
+def _conventions(sheet: float, plate: float, thickness_m: float) -> float:
+    """The whole channels' correlation the two tools' slab conventions leave, from the two
+    returns' gated peaks: the plate's path stands e^{+j k d} further round against the
+    sheet's in rfsdf than in Sionna (rfsdf's slab of thickness d centred on the surface, its
+    front face d / 2 nearer, T its excess over free space; Sionna's surface with T's whole
+    phase less e^{+j q0}), so the correlation is |sum_f (s^2 + p^2 e^{j k_f d})| / (F (s^2 + p^2))."""
+    k = 2 * np.pi * FREQUENCIES_HZ / SPEED_OF_LIGHT
+    return float(abs(np.sum(sheet**2 + plate**2 * np.exp(1j * k * thickness_m))) / (len(k) * (sheet**2 + plate**2)))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sionna-python", required=True, help="a Python interpreter with sionna-rt installed")
@@ -149,6 +161,7 @@ def main() -> None:
                 "sheet_correlation": round(_correlation(_profile(got["rfsdf"], SHEET_M)[1],
                                                         _profile(got["sionna"], SHEET_M)[1]), 4),
                 "channel_correlation": round(_correlation(got["rfsdf"], got["sionna"]), 4),
+                "channel_correlation_conventions": round(_conventions(sheet["rfsdf"][1], plate["rfsdf"][1], thickness), 4),
                 "time_s": got["time_s"]}
             print(name, rows[name], flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
