@@ -35,7 +35,7 @@ from .roughness import Roughness
 from .scene_spec import CSGSpec, MeshShapeSpec, SceneSpec, ShapeSpec
 
 __all__ = ["Scene", "SceneObject", "MeshReading", "SurfaceSamples", "load_scene", "scene_presets", "build_shape",
-           "surface_mesh", "mesh_reading"]
+           "surface_mesh", "mesh_reading", "is_shell", "shell_mesh"]
 
 _SHAPE = TypeAdapter(ShapeSpec)
 _MESH_RESOLUTION = 192  # marching-cubes cells along an analytic object's longest edge
@@ -151,25 +151,29 @@ def transformed(surface: trimesh.Trimesh, spec: ShapeSpec) -> trimesh.Trimesh:
     return surface
 
 
-def shell_mesh(shape: ShapeSpec) -> trimesh.Trimesh | None:
-    """The exact triangles of a shell (a box less a smaller box about the same centre,
-    :func:`box_table`'s): both boxes, the inner one's faces turned in, through the shape's
-    transform; None for any other shape. Marching cubes of a wall 1 cm thick around a
-    10 x 10 x 5 m room needs cells of 3 mm over its 400 m^2 (it filled the machine)."""
-    def box(spec) -> trimesh.Trimesh:
-        return trimesh.creation.box(extents=2 * np.asarray(spec.half_extents_m),
-                                    transform=trimesh.transformations.translation_matrix(spec.center_m))
-
-    children = getattr(shape, "children", None)
-    if shape.type != "difference" or len(children) != 2 or any(c.type != "box" or c.transform for c in children):
-        return None
+def is_shell(table: dict) -> bool:
+    """Whether a shape table is a shell: a box less a smaller box about the same centre,
+    neither turned on its own (:func:`box_table`'s; the difference may carry a transform)."""
+    children = table.get("children") if table.get("type") == "difference" else None
+    if not children or len(children) != 2 or any(c.get("type") != "box" or c.get("transform") for c in children):
+        return False
     outer, inner = children
-    if tuple(outer.center_m) != tuple(inner.center_m) or not (
-            np.asarray(outer.half_extents_m) > np.asarray(inner.half_extents_m)).all():
+    return (list(outer.get("center_m", (0.0, 0.0, 0.0))) == list(inner.get("center_m", (0.0, 0.0, 0.0)))
+            and bool((np.asarray(outer["half_extents_m"], float) > np.asarray(inner["half_extents_m"], float)).all()))
+
+
+def shell_mesh(shape: ShapeSpec) -> trimesh.Trimesh | None:
+    """The exact triangles of a shell (:func:`is_shell`): both boxes, the inner one's faces
+    turned in, through the shape's transform; None for any other shape. Marching cubes of a
+    wall 1 cm thick around a 10 x 10 x 5 m room needs cells of 3 mm over its 400 m^2 (it
+    filled the machine)."""
+    if not is_shell(shape.model_dump(mode="json")):
         return None
-    cavity = box(inner)
-    cavity.invert()
-    return transformed(trimesh.util.concatenate([box(outer), cavity]), shape)
+    outer, inner = (trimesh.creation.box(extents=2 * np.asarray(box.half_extents_m),
+                                         transform=trimesh.transformations.translation_matrix(box.center_m))
+                    for box in shape.children)
+    inner.invert()
+    return transformed(trimesh.util.concatenate([outer, inner]), shape)
 
 
 def mesh_reading(spec: MeshShapeSpec, surface: trimesh.Trimesh) -> str:

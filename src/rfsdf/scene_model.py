@@ -26,7 +26,7 @@ import numpy as np
 from .config import read_toml, validate
 from .errors import RfsdfError
 from .materials import MATERIAL_CLASSES, get_material
-from .scene import Scene
+from .scene import Scene, is_shell
 from .scene_spec import SceneSpec
 
 __all__ = ["FreeParameter", "FreeMaterial", "SceneModel", "analytic_spec", "load_scene_model", "POSITION_FIELDS",
@@ -221,7 +221,9 @@ class SceneModel:
             ``offsets`` (key: offset) where given; returns the offsets drawn at this level."""
             drawn = {}
             if isinstance(node, dict):
-                if _is_shell(node):  # a wall's two faces move as one: inner first, the outer by its offsets
+                # a shell's two boxes move as one (drawn apart, box_knife's 1 cm wall moved 15 cm lost
+                # three of its faces): the inner box first, the outer by the same offsets
+                if is_shell(node):
                     free_lengths(node["children"][0], free_lengths(node["children"][1]))
                     return drawn
                 for key, value in list(node.items()):
@@ -300,7 +302,7 @@ class SceneModel:
 
     def shell_ties(self) -> list[tuple[int, int]]:
         """(outer, inner) indices into :attr:`free` of each length a shell's two boxes both
-        free (:func:`_is_shell`): the fit moves the outer with the inner, their start's
+        free (:func:`~rfsdf.scene.is_shell`): the fit moves the outer with the inner, their start's
         difference kept, so that a thin wall neither thickens nor vanishes (its outer faces,
         unseen from inside a room, would hold while the inner ones pass them)."""
         index = {p.path: i for i, p in enumerate(self.free)}
@@ -311,7 +313,7 @@ class SceneModel:
                 continue
             partner = index.get(path[:-2] + (1, path[-1]))
             shape, _ = self.node(path[:-2])
-            if partner is not None and _is_shell(shape.model_dump(mode="json")):
+            if partner is not None and is_shell(shape.model_dump(mode="json")):
                 ties.append((i, partner))
         return ties
 
@@ -334,20 +336,6 @@ def analytic_spec(scene: Scene) -> SceneSpec:
         if obj.reading is not None and obj.reading.box:  # the box the scene found at load (scene.box_table)
             row["shape"] = obj.reading.box_shape
     return SceneSpec.model_validate(table)
-
-
-def _is_shell(node: dict) -> bool:
-    """Whether a shape table is a shell: a box less a box about the same centre, smaller
-    along every axis (:func:`~rfsdf.scene.box_table`'s), whose start must keep its wall:
-    moved apart by offsets of 15 cm, the inner box of a 1 cm wall left the outer one and
-    took that wall away (``box_knife``: three of its four walls, so their lengths had no gradient)."""
-    children = node.get("children") if node.get("type") == "difference" else None
-    if not children or len(children) != 2 or any(c.get("type") != "box" for c in children):
-        return False
-    outer, inner = children
-    if outer.get("center_m") != inner.get("center_m") or outer.get("transform") != inner.get("transform"):
-        return False
-    return bool((np.asarray(outer["half_extents_m"], float) > np.asarray(inner["half_extents_m"], float)).all())
 
 
 def _dotted(path: tuple) -> str:
