@@ -203,6 +203,22 @@ def test_meshes_that_are_boxes_are_written_as_analytic_boxes_with_the_same_sdf_a
     np.testing.assert_allclose((field.values[0] - field.values[2]).detach().numpy(), 0.02, atol=1e-12)
 
 
+def test_a_turned_shell_starts_as_one_piece_and_keeps_its_placement_free():
+    """A crate turned by its transform: its two boxes move by the same offsets (the 1 cm wall
+    kept) and the transform's translation is free as any shape's."""
+    spec = SceneSpec.model_validate({"name": "t", "bounds": {"lower_m": [-1, -1, -1], "upper_m": [1, 1, 1]}, "objects": [
+        {"name": "crate", "material": "wood", "shape": {
+            "type": "difference", "transform": {"translate_m": [0.1, 0.0, 0.0], "rotate_rad": 0.3},
+            "children": [{"type": "box", "half_extents_m": [0.2, 0.2, 0.2]},
+                         {"type": "box", "half_extents_m": [0.19, 0.19, 0.19]}]}}]})
+    model = SceneModel.from_scene(Scene(spec), 0.05, seed=0)
+    named = {p.name: np.asarray(p.start) for p in model.free}
+    assert "crate.transform.translate_m" in named
+    np.testing.assert_allclose(named["crate.children[0].half_extents_m"] - named["crate.children[1].half_extents_m"],
+                               0.01, atol=1e-12)
+    assert len(Scene(spec).object_meshes()[0].faces) == 24
+
+
 def test_a_radar_inside_a_wall_is_one_line(tmp_path):
     path = _xml(tmp_path, f'{ITU_CONCRETE}<shape type="rectangle" id="floor"><ref id="c"/></shape>')
     with pytest.raises(RfsdfError, match=r"view 0 at \[0.0, 0.0, 0.0\] m lies inside object 'floor'"):

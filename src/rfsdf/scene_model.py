@@ -223,10 +223,12 @@ class SceneModel:
             if isinstance(node, dict):
                 # a shell's two boxes move as one (drawn apart, box_knife's 1 cm wall moved 15 cm lost
                 # three of its faces): the inner box first, the outer by the same offsets
-                if is_shell(node):
+                shell = is_shell(node)
+                if shell:
                     free_lengths(node["children"][0], free_lengths(node["children"][1]))
-                    return drawn
                 for key, value in list(node.items()):
+                    if shell and key == "children":
+                        continue  # freed above; the shell's own transform is freed as any shape's
                     if key in POSITION_FIELDS + SIZE_FIELDS and value is not None and not _is_parameter_table(value):
                         truth = np.atleast_1d(np.asarray(value, dtype=float))
                         drawn[key] = (offsets[key] if offsets and key in offsets
