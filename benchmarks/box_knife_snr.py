@@ -28,6 +28,7 @@ import torch
 from rfsdf.demo import load_scene_and_radar
 from rfsdf.model_demo import ModelDemoSettings, run_model_demo
 from rfsdf.radar import read_measurements, write_measurements
+from rfsdf.radar.simulate import noise_draw
 from rfsdf.recon.neural_profiles import NeuralProfileSettings
 
 HERE = Path(__file__).parent
@@ -36,13 +37,10 @@ THROUGH_THE_KNIFE = ("x = -5 m", "x = +5 m")  # the views at x = +-0.3 m look th
 
 
 def clean_data(measurements, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """(the data without their noise, the noise's draw at unit sigma): add_noise's draw
-    regenerated from ``seed`` + 1."""
-    generator = torch.Generator().manual_seed(seed + 1)
-    shape = measurements.data.shape
-    unit = torch.complex(torch.randn(shape, generator=generator), torch.randn(shape, generator=generator))
-    unit = (unit / math.sqrt(2)).to(measurements.data.dtype)
-    return measurements.data - measurements.noise_std * unit, unit
+    """(the data without their noise, the noise at unit sigma): add_noise's draw regenerated
+    from ``seed`` + 1, as the simulator seeds it."""
+    draw = noise_draw(measurements.data.shape, torch.Generator().manual_seed(seed + 1)).to(measurements.data.dtype)
+    return measurements.data - (measurements.noise_std / math.sqrt(2)) * draw, draw / math.sqrt(2)
 
 
 def walls(row: dict, which: str = "fitted") -> dict[str, float]:

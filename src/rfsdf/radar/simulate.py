@@ -28,7 +28,7 @@ from .system import Radar
 from .waveform import range_resolution_m
 from .transmission import excess_delay, thin_slabs, through_objects
 
-__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "SAMPLES_PER_WAVELENGTH",
+__all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "noise_draw", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
 
 SIMULATED_GAIN = 1.0
@@ -103,11 +103,16 @@ def _delayed(weight, acquisition: Acquisition, excess_m: torch.Tensor, views: sl
     return facets * delay[None].to(facets.dtype)
 
 
+def noise_draw(shape, generator: torch.Generator) -> torch.Tensor:
+    """(shape) complex64 randn + j randn from ``generator``: the draw :func:`add_noise` scales
+    by sigma / sqrt(2) (a benchmark regenerates it to take a run's noise out)."""
+    return torch.complex(torch.randn(shape, generator=generator), torch.randn(shape, generator=generator))
+
+
 def add_noise(y: torch.Tensor, snr_db: float, generator: torch.Generator) -> tuple[torch.Tensor, float]:
     """y + circular complex Gaussian noise with mean|y|^2 / sigma^2 = 10^(snr/10); returns (y, sigma)."""
     sigma = float(torch.sqrt((y.abs() ** 2).mean() / 10 ** (snr_db / 10)))
-    noise = torch.complex(torch.randn(y.shape, generator=generator), torch.randn(y.shape, generator=generator))
-    return y + (sigma / np.sqrt(2)) * noise.to(y.dtype), sigma
+    return y + (sigma / np.sqrt(2)) * noise_draw(y.shape, generator).to(y.dtype), sigma
 
 
 def _require_resolved_roughness(scene: Scene, spacing_m: float) -> None:
