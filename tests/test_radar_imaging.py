@@ -145,6 +145,49 @@ def test_range_sidelobes_match_the_dirichlet_kernel():
     assert range_sidelobes([79e9]) == (float("inf"), 1.0)
 
 
+def test_sidelobes_are_what_a_views_glints_explain_by_their_point_spread():
+    """Data of a bright point and a weaker one 3 cm beside it and 5 cm behind, seen by a planar
+    array on the bright one's axis; handed as peaks: the bright point (the glint), a peak at
+    its first range sidelobe on its axis (1.43 range resolutions behind, where nothing is),
+    a peak in its main lobe 5 mm behind it, and the weaker point. Only the range sidelobe is
+    marked: the glint's response there is all the data show; the weaker point returns far more
+    than the glint's sidelobes reach, and the main lobe is not tested. Of a detection in the
+    data's image, the voxels at that sidelobe are marked, none at the two points."""
+    from rfsdf.radar import Measurements, matched_filter
+    from rfsdf.radar.glint_sidelobes import sidelobe_peaks, sidelobe_voxels
+    from rfsdf.radar.operator import SensingOperator
+    from rfsdf.radar.range_peaks import RangePeaks
+
+    xs = np.linspace(-0.019, 0.019, 21)
+    pos = torch.tensor([[x, y, 0.0] for x in xs for y in xs], dtype=torch.float64)[None]
+    acq = Acquisition(pos, pos.clone(), torch.linspace(77e9, 81e9, 16, dtype=torch.float64),
+                      torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64))
+    targets = torch.tensor([[0.0, 0.0, 0.15], [0.03, 0.0, 0.20]], dtype=torch.float64)
+    data = SensingOperator(acq).forward(targets, torch.tensor([1.0, 0.3], dtype=torch.complex128))
+    sidelobe_m = 0.15 + 1.43 * range_resolution_m(4e9)
+    points = np.array([[0.0, 0.0, 0.15], [0.0, 0.0, sidelobe_m], [0.0, 0.0, 0.155], [0.03, 0.0, 0.20]])
+    peaks = RangePeaks(points, np.array([1.0, 0.2, 0.4, 0.3]), np.zeros(4, int), np.tile([0.0, 0.0, -1.0], (4, 1)))
+    marked = sidelobe_peaks(Measurements(acq, data), peaks)
+    assert marked.tolist() == [False, True, False, False]
+    assert not sidelobe_peaks(Measurements(acq, data), peaks.select([0, 2])).any()  # nothing beyond the main lobe
+    kept = peaks.select(~marked)
+    assert np.allclose(kept.points, points[[0, 2, 3]]) and kept.amplitude.tolist() == [1.0, 0.4, 0.3]
+    # the same peak where a face as bright as the glint returns is kept
+    with_face = SensingOperator(acq).forward(torch.tensor([[0.0, 0.0, sidelobe_m]], dtype=torch.float64),
+                                             torch.tensor([1.0], dtype=torch.complex128)) + data
+    assert not sidelobe_peaks(Measurements(acq, with_face), peaks)[1]
+    # a detection of the data's own image: the voxels around the sidelobe are marked, none at the points
+    grid = Grid((-0.045, -0.045, 0.105), (0.045, 0.045, 0.285), (15, 15, 30))  # 6 mm voxels
+    measurements = Measurements(acq, data)
+    per_view = (matched_filter(measurements, grid).per_view.abs() ** 2).numpy()
+    voxels = sidelobe_voxels(measurements, peaks, per_view, grid, threshold=0.1, local_threshold=0.5, window_m=0.03)
+    centres = grid.points().double().numpy()
+    nearest = lambda p: np.linalg.norm(centres - p, axis=1).argmin()  # noqa: E731
+    assert voxels.ravel()[nearest(points[1])] and voxels.any()
+    assert not voxels.ravel()[[nearest(points[0]), nearest(points[3])]].any()
+    assert voxels.sum() < 0.1 * voxels.size
+
+
 def test_on_range_sidelobes_marks_a_weak_copy_on_a_bright_glints_line_of_sight():
     """A bright blob at the origin seen from +z, and a blob 0.1 as bright one range resolution
     (37.5 mm) nearer the array: the weak one is a sidelobe (marked), the bright one is not.

@@ -24,7 +24,7 @@ from rfsdf.recon import (
 )
 from rfsdf.recon.losses import DATA_LOSSES, complex_loss, split_spectrum_loss
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
-from rfsdf.recon.warm_start import detection_target, fit_to_image
+from rfsdf.recon.warm_start import detection_target, excluded_voxels, fit_to_image
 from rfsdf.scene import Scene, load_scene
 from rfsdf.scene_spec import SceneSpec
 from rfsdf.studies.ball_fit import ball_data
@@ -467,18 +467,23 @@ def test_the_warm_start_and_the_fit_each_use_their_own_eikonal_weight(sphere_dat
 
 
 def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves(sphere_data, tmp_path, monkeypatch):
-    """``[init] blank_range_sidelobes`` and ``carve_front`` (both on) reach the warm start as
-    the voxels it leaves out, from the per-view images of its method (here the MF's)."""
+    """``[init] blank_range_sidelobes``, ``carve_front`` and ``glint_sidelobes`` (all on)
+    reach the warm start as the voxels it leaves out, from the per-view images of its method
+    (here the MF's); the glints' rule from the range peaks the others leave."""
     import rfsdf.recon.trainer as trainer_module
     from rfsdf.radar.detection import in_front_of_ridges, on_range_sidelobes
+    from rfsdf.radar.glint_sidelobes import sidelobe_voxels
+    from rfsdf.radar.range_peaks import range_peaks
 
     _, data = sphere_data
     seen = {}
     monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: seen.update(kw))
-    for carve, blank in ((False, False), (True, False), (False, True)):
+    for carve, blank, glint in ((False, False, False), (True, False, False), (False, True, False), (False, False, True)):
         settings = _config(steps=2).model_dump()
-        settings["init"].update(method="mf", carve_front=carve, blank_range_sidelobes=blank, threshold=0.05)
-        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{carve}{blank}")
+        settings["init"].update(method="mf", carve_front=carve, blank_range_sidelobes=blank, glint_sidelobes=glint,
+                                threshold=0.05)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings),
+                          tmp_path / f"{carve}{blank}{glint}")
         trainer.warm_start()
         grid = trainer.problem.grid
         per_view = (matched_filter(data, grid).per_view.abs() ** 2).numpy()  # every frame, as the warm start
@@ -491,15 +496,21 @@ def test_the_warm_start_excludes_range_sidelobes_and_optionally_the_front_halves
         if blank:
             expected = on_range_sidelobes(per_view, centres, data.acquisition.frequencies_hz.numpy(), grid,
                                           level=ReconConfig().init.sidelobe_level, **rule)
+        if glint:
+            expected = sidelobe_voxels(data, range_peaks(data, per_view, grid, **rule), per_view, grid, **rule)
+            assert expected.any()
         np.testing.assert_array_equal(seen["exclude"], expected)
-    assert ReconConfig().init.blank_range_sidelobes and ReconConfig().init.carve_front
+    init = ReconConfig().init
+    assert init.blank_range_sidelobes and init.carve_front and init.glint_sidelobes
 
 
 def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(sphere_data, tmp_path, monkeypatch):
     """``[init] peak_weight`` (on by default) hands the warm start the range peaks of the
-    per-view images of its method (here the MF's), from the ridges it does not exclude;
-    0 hands it none."""
+    per-view images of its method (here the MF's), from the ridges it does not exclude, less
+    those a view's glints explain (``glint_sidelobes``, which also excludes the detections they
+    explain); 0 hands it none."""
     import rfsdf.recon.trainer as trainer_module
+    from rfsdf.radar.glint_sidelobes import sidelobe_peaks
     from rfsdf.radar.range_peaks import range_peaks
 
     _, data = sphere_data
@@ -516,11 +527,13 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
     grid = trainer.problem.grid
     per_view = (matched_filter(data, grid).per_view.abs() ** 2).numpy()
     expected = range_peaks(data, per_view, grid, threshold=0.05, local_threshold=0.5, window_m=0.03,
-                           keep=~seen["exclude"])
+                           keep=~excluded_voxels(trainer.config.init, per_view, data.acquisition, grid, 0.05))
+    expected = expected.select(~sidelobe_peaks(data, expected))
     everything = range_peaks(data, per_view, grid, threshold=0.05, local_threshold=0.5, window_m=0.03)
     np.testing.assert_allclose(seen["peaks"].points, expected.points)
     assert set(seen["peaks"].view) == set(range(data.acquisition.num_views))
     assert seen["exclude"].any() and len(expected.points) < len(everything.points)
+    assert (seen["exclude"] >= excluded_voxels(trainer.config.init, per_view, data.acquisition, grid, 0.05)).all()
     assert ReconConfig().init.peak_weight > 0
 
 
@@ -627,8 +640,8 @@ def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(
     mf = (matched_filter(data, grid).per_view.abs() ** 2).numpy()
     for in_mf in (False, True):
         settings = _config(steps=2).model_dump()
-        settings["init"].update(method="clean", carve_front=False, threshold=0.05, sidelobe_reach=6.0,
-                                sidelobe_level=0.4, sidelobes_in_mf=in_mf)
+        settings["init"].update(method="clean", carve_front=False, glint_sidelobes=False, threshold=0.05,
+                                sidelobe_reach=6.0, sidelobe_level=0.4, sidelobes_in_mf=in_mf)
         trainer = Trainer(Problem(data, grid, clean=clean), ReconConfig.model_validate(settings), tmp_path / f"{in_mf}")
         trainer.warm_start()
         rule = {"threshold": 0.05, "local_threshold": 0.5, "window_m": 0.03, "reach": 6.0, "level": 0.4}

@@ -71,6 +71,10 @@ class RangePeaks:
     view: np.ndarray
     towards: np.ndarray
 
+    def select(self, kept: np.ndarray) -> RangePeaks:
+        """The peaks ``kept`` (N,) bool (or indices), amplitudes as they were."""
+        return RangePeaks(self.points[kept], self.amplitude[kept], self.view[kept], self.towards[kept])
+
 
 def range_peaks(measurements: Measurements, per_view_power: np.ndarray, grid, *, threshold: float,
                 local_threshold: float, window_m: float, keep: np.ndarray | None = None,

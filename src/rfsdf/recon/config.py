@@ -97,6 +97,12 @@ class InitConfig(StrictModel):
     # its matched filter (radar.range_peaks: 4.0 -> 1.2 mm from the truth, median, on the
     # demo), weight of that L1 term beside the target's; 0 turns it off
     peak_weight: NonNegativeFloat = 1.0
+    # leave out of the range peaks, and of the detection where no view sees more, what a
+    # view's glints explain in its own image as their sidelobes (range and lateral:
+    # radar.glint_sidelobes): a metal ball's had held a lump 4 mm outside its far side, and
+    # were detections 3-4 cm off it (docs/results/demo-quality.md, "Peaks on sidelobes"); needs the
+    # range peaks (a peak weight above 0); False keeps them, as before
+    glint_sidelobes: bool = True
     # seen through a known scene (Problem.through: a box whose own return was subtracted),
     # what is left at its walls is no object's (the objects shadow part of the far walls, the
     # empty box's capture does not): the voxels within this distance [m] of the known

@@ -31,6 +31,7 @@ from ..progress import progress_bar
 from ..radar import Measurements, matched_filter
 from ..radar.clean import CleanResult, clean_image
 from ..radar.imaging import Image
+from ..radar.glint_sidelobes import sidelobe_peaks, sidelobe_voxels
 from ..radar.range_peaks import range_peaks
 from ..radar.specular import specular_normals
 from ..scene import Scene
@@ -263,6 +264,10 @@ class Trainer:
             peaks = range_peaks(self.problem.measurements, per_view, grid, threshold=threshold,
                                 local_threshold=ic.local_threshold, window_m=ic.window_m, keep=~exclude,
                                 through=self.problem.through)
+            if ic.glint_sidelobes:  # neither peaks nor detections on what the glints' sidelobes explain
+                exclude |= sidelobe_voxels(self.problem.measurements, peaks, per_view, grid, threshold=threshold,
+                                           local_threshold=ic.local_threshold, window_m=ic.window_m)
+                peaks = peaks.select(~sidelobe_peaks(self.problem.measurements, peaks))
             if len(peaks.points):
                 self.peaks = tuple(torch.from_numpy(a).to(self.device) for a in
                                    (peaks.points.astype(np.float32), peaks.amplitude.astype(np.float32),
