@@ -20,7 +20,7 @@ from scipy import ndimage
 
 from .waveform import range_sidelobes
 
-__all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "in_front_of_ridges",
+__all__ = ["amplitude_of", "window_voxels", "detection_mask", "detection_level", "own_detection", "in_front_of_ridges",
            "range_ridges", "on_range_sidelobes"]
 
 SIDELOBE_REACH = 4.0  # on_range_sidelobes' default: this many range resolutions along each line of sight
@@ -45,6 +45,15 @@ def detection_level(power: np.ndarray, *, threshold: float, local_threshold: flo
     return np.maximum(local_threshold * local, threshold * float(amplitude.max()))
 
 
+def own_detection(power: np.ndarray, *, threshold: float, local_threshold: float, window_voxels: int) -> np.ndarray:
+    """(nx, ny, nz) bool: one view's own detection, where its amplitude reaches
+    :func:`detection_level` of its power (and is not 0); empty or full without complaint,
+    unlike :func:`detection_mask`."""
+    amplitude = amplitude_of(power)
+    level = detection_level(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window_voxels)
+    return (amplitude >= level) & (amplitude > 0)
+
+
 def detection_mask(power: np.ndarray, *, threshold: float, local_threshold: float, window_voxels: int) -> np.ndarray:
     """(nx, ny, nz) bool: sqrt(power) >= max(local_threshold * local peak, threshold * peak).
 
@@ -52,9 +61,7 @@ def detection_mask(power: np.ndarray, *, threshold: float, local_threshold: floa
     ``local_threshold`` of 0 gives a plain global threshold. Raises ValueError when the set
     is empty or the whole box.
     """
-    amplitude = amplitude_of(power)
-    level = detection_level(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window_voxels)
-    inside = (amplitude >= level) & (amplitude > 0)
+    inside = own_detection(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window_voxels)
     if not inside.any() or inside.all():
         raise ValueError(f"image thresholds (global {threshold:g}, local {local_threshold:g}) select "
                          f"{'no' if not inside.any() else 'every'} voxel; choose other init thresholds")
@@ -155,8 +162,7 @@ def _view_detections(per_view_power, view_centres_m, grid, points, *, threshold,
     window = window_voxels(window_m, grid)
     for power, centre in zip(per_view_power, np.asarray(view_centres_m, float)):
         amplitude = amplitude_of(power)
-        own = (amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
-                                            window_voxels=window)) & (amplitude > 0)
+        own = own_detection(power, threshold=threshold, local_threshold=local_threshold, window_voxels=window)
         towards = centre - points
         towards /= np.linalg.norm(towards, axis=1, keepdims=True)
         yield amplitude, own, towards

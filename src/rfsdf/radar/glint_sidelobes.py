@@ -27,7 +27,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from .acquisition import Measurements
-from .detection import amplitude_of, detection_level, window_voxels
+from .detection import own_detection, window_voxels
 from .operator import SensingOperator
 from .range_peaks import RangePeaks
 from .waveform import range_sidelobes
@@ -43,9 +43,10 @@ def sidelobe_peaks(measurements: Measurements, peaks: RangePeaks) -> np.ndarray:
     docstring). On the demo 160 of 930 peaks, 155 of them more than 2 mm off the surface, 2
     within 1 mm of it."""
     marked = np.zeros(len(peaks.points), bool)
+    reach_m = _main_lobe_m(measurements)
     for view in np.unique(peaks.view):
         mine = np.flatnonzero(peaks.view == view)
-        marked[mine] = _explained(measurements, int(view), _glints(peaks, view), peaks.points[mine])
+        marked[mine] = _explained(measurements, int(view), _glints(peaks, view), peaks.points[mine], reach_m)
     return marked
 
 
@@ -57,12 +58,11 @@ def sidelobe_voxels(measurements: Measurements, peaks: RangePeaks, per_view_powe
     view and genuine in none, as :func:`~rfsdf.radar.detection.on_range_sidelobes` marks."""
     points = grid.points().double().numpy()
     sidelobe, genuine = np.zeros(grid.size, bool), np.zeros(grid.size, bool)
-    window = window_voxels(window_m, grid)
+    window, reach_m = window_voxels(window_m, grid), _main_lobe_m(measurements)
     for view, power in enumerate(per_view_power):
-        amplitude = amplitude_of(power)
-        own = np.flatnonzero(((amplitude >= detection_level(power, threshold=threshold, local_threshold=local_threshold,
-                                                             window_voxels=window)) & (amplitude > 0)).ravel())
-        lobe = _explained(measurements, view, _glints(peaks, view), points[own])
+        own = np.flatnonzero(own_detection(power, threshold=threshold, local_threshold=local_threshold,
+                                           window_voxels=window))
+        lobe = _explained(measurements, view, _glints(peaks, view), points[own], reach_m)
         sidelobe[own[lobe]] = True
         genuine[own[~lobe]] = True
     return (sidelobe & ~genuine).reshape(grid.shape)
@@ -73,15 +73,22 @@ def _glints(peaks: RangePeaks, view) -> np.ndarray:
     return peaks.points[(peaks.view == view) & (peaks.amplitude >= GLINT_LEVEL)]
 
 
-def _explained(measurements: Measurements, view: int, glints: np.ndarray, points: np.ndarray) -> np.ndarray:
+def _main_lobe_m(measurements: Measurements) -> float:
+    """Half the first range null of the data's frequencies [m]: within it a point is a glint's
+    own main lobe (inf for a single frequency: nothing is tested)."""
+    return 0.5 * range_sidelobes(measurements.acquisition.frequencies_hz.cpu().numpy())[0]
+
+
+def _explained(measurements: Measurements, view: int, glints: np.ndarray, points: np.ndarray,
+               reach_m: float) -> np.ndarray:
     """(N,) bool: which ``points`` (N, 3) [m] the ``glints`` (G, 3) [m] of view ``view``
-    explain as their sidelobes (module docstring)."""
+    explain as their sidelobes, testing those more than ``reach_m`` from every glint (module
+    docstring)."""
     acquisition = measurements.acquisition
-    null_m, _ = range_sidelobes(acquisition.frequencies_hz.cpu().numpy())
     marked = np.zeros(len(points), bool)
-    if not len(glints) or not len(points) or not np.isfinite(null_m):
+    if not len(glints) or not len(points) or not np.isfinite(reach_m):
         return marked
-    tested = np.flatnonzero(cKDTree(glints).query(points)[0] > 0.5 * null_m)
+    tested = np.flatnonzero(cKDTree(glints).query(points)[0] > reach_m)
     if not len(tested):  # all within a glint's main lobe
         return marked
     operator = SensingOperator(acquisition.coherent_view(view))
