@@ -26,7 +26,7 @@ from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
 from .waveform import range_resolution_m
-from .transmission import excess_delay, thin_slabs, through_objects
+from .transmission import Slabs, band_factor, thin_slabs, through_objects
 
 __all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "noise_draw", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
@@ -93,14 +93,17 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     return c if sight is None else c * sight.to(device=device, dtype=c.dtype)
 
 
-def _delayed(weight, acquisition: Acquisition, excess_m: torch.Tensor, views: slice, points: slice) -> torch.Tensor:
+def _through(weight, scene: Scene, acquisition: Acquisition, slabs: Slabs, polarization: str, views: slice,
+             points: slice) -> torch.Tensor:
     """A chunk's per-frequency weight (v, K, q) (:meth:`SensingOperator.forward_weighted`):
-    ``weight``'s (None: 1) times each point's excess path's delay (:func:`excess_delay`)."""
-    delay = excess_delay(acquisition.frequencies_hz, acquisition.center_frequency_hz, excess_m[points])  # (K, q)
+    ``weight``'s (None: 1) times each point's slabs' two-way T at each frequency over the
+    centre frequency's (:func:`band_factor`)."""
+    band = band_factor(scene, slabs[points], acquisition.frequencies_hz, acquisition.center_frequency_hz,
+                       polarization)  # (K, q)
     if weight is None:
-        return delay[None].expand(len(acquisition.tx_m[views]), -1, -1)
+        return band[None].expand(len(acquisition.tx_m[views]), -1, -1)
     facets = weight(views, points)
-    return facets * delay[None].to(facets.dtype)
+    return facets * band[None].to(facets.dtype)
 
 
 def noise_draw(shape, generator: torch.Generator) -> torch.Tensor:
@@ -146,8 +149,8 @@ def simulate(
     summary is the metadata's "surface_sampling"). Rough objects need samples at most half
     their correlation length apart, else ValueError. With ``transmission`` a line of sight
     goes on through dielectric objects instead of stopping at them (each crossing a slab of
-    the chord's thickness: its T out and back, the sample standing farther by its excess
-    path, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
+    the chord's thickness: its T out and back at every frequency, the sample standing farther
+    by its excess path, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
@@ -161,19 +164,20 @@ def simulate(
                   "polarization": polarization, "shadows": shadows}
     points = scene.rough_points(samples)
 
-    def measure(part: Acquisition, sight: torch.Tensor | None = None, excess: torch.Tensor | None = None,
+    def measure(part: Acquisition, sight: torch.Tensor | None = None, slabs: Slabs | None = None,
                 slab: torch.Tensor | None = None, show: bool = progress) -> torch.Tensor:
         """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; with ``sight`` (Q,)
         (bool or complex: each sample's line of sight, found once for these frames) summed
-        over the samples some frame sees (a scan: about half), each delayed by ``excess``
-        (Q,), its two-way excess path [m], and reflecting as a thin slab of ``slab`` (Q,) [m]."""
+        over the samples some frame sees (a scan: about half), each through its ``slabs``
+        (Q, C) at every frequency (:func:`band_factor`), and reflecting as a thin slab of
+        ``slab`` (Q,) [m]."""
         c = view_reflectivities(scene, samples, part, sight=sight, progress=show, slab_m=slab, **scattering)
         seen = (c != 0).any(0) if sight is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
         operator, c = SensingOperator(part), c[:, seen]
         weight = None if samples.corners_m is None else facet_weight(part, samples.points[seen],
                                                                       samples.corners_m[seen])
-        if excess is not None:
-            weight = partial(_delayed, weight, part, excess[seen].to(points.device))
+        if slabs is not None:
+            weight = partial(_through, weight, scene, part, slabs[seen.to(slabs.thickness_m.device)], polarization)
         if weight is None:
             return operator.forward(points[seen], c, progress=show).cpu()
         return operator.forward_weighted(points[seen], c, weight, progress=show).cpu()
@@ -188,9 +192,9 @@ def simulate(
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
         centres = 0.5 * sum(acq.view_centres())  # (S, 3) each view's phase centre
         for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
-            centre, excess, slab = centres[view].to(samples.points), None, None
+            centre, slabs, slab = centres[view].to(samples.points), None, None
             if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
-                sight, excess = through_objects(scene, samples.points, samples.normals, centre,
+                sight, slabs = through_objects(scene, samples.points, samples.normals, centre,
                                                 acq.center_frequency_hz, polarization)
                 slab = thin_slabs(scene, samples.points, samples.normals, samples.object_index, centre,
                                   acq.center_frequency_hz, range_resolution_m(acq.bandwidth_hz))
@@ -198,7 +202,7 @@ def simulate(
                 sight = (unblocked(samples.points, samples.normals, centre, scene.sdf)
                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
             for part in acq.frames(view).split(chunk):
-                y[part] = measure(acq.view(part), sight, excess, slab, show=False)
+                y[part] = measure(acq.view(part), sight, slabs, slab, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:

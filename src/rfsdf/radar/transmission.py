@@ -8,21 +8,24 @@ material's, and which multiplies the one-way field by its T and stands the sampl
 its excess electrical path (:func:`~rfsdf.slab.excess_path`). A metal object stops the ray,
 as the opaque shadow does. The refracted ray's lateral offset inside a slab is left out
 (a 3 mm sheet at 45 degrees moves it about 1 mm).
+
+The line of sight's factor is T at the centre frequency; each slab it crossed is kept
+(:class:`Slabs`), so that :func:`band_factor` gives T over the band, frequency by frequency
+(a thick slab's internal reflections turn |T|^2 through its resonances within the band:
+20 mm of glass between 0.47 and 1 over 77-81 GHz).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 
 from ..geometry import sphere_trace
 from ..scene import Scene
 from ..slab import excess_path, slab_coefficients
-from .acquisition import SPEED_OF_LIGHT
 
-__all__ = ["LineOfSight", "line_of_sight", "through_objects", "excess_delay", "thickness_along", "thin_slabs"]
+__all__ = ["Slabs", "LineOfSight", "line_of_sight", "through_objects", "band_factor", "thickness_along", "thin_slabs"]
 
 _TRACE_EPS_M = 1e-7  # hit tolerance of the rays [m]: a slab's phase needs its thickness to a micrometre
 _STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
@@ -30,14 +33,54 @@ MAX_CROSSINGS = 16  # faces a ray passes at most (a closed box with something be
 
 
 @dataclass(frozen=True)
+class Slabs:
+    """The dielectric slabs each ray crossed, in the order it met them: ``object_index``
+    (..., C) int64 (the scene's objects), ``cos_inc`` (..., C) float64 its incidence cosine,
+    ``thickness_m`` (..., C) float64 [m]. A ray that crossed fewer than C (or crossed metal,
+    which blocks it) is padded with slabs of no thickness, which pass it (T = 1)."""
+
+    object_index: torch.Tensor
+    cos_inc: torch.Tensor
+    thickness_m: torch.Tensor
+
+    def __getitem__(self, index) -> "Slabs":
+        """The slabs of the rays ``index`` selects on the leading axes."""
+        return Slabs(self.object_index[index], self.cos_inc[index], self.thickness_m[index])
+
+    @staticmethod
+    def clear(rays: int, width: int, device=None) -> "Slabs":
+        """(rays, width) slabs of no thickness: rays that cross nothing."""
+        return Slabs(torch.zeros(rays, width, dtype=torch.long, device=device),
+                     torch.ones(rays, width, dtype=torch.float64, device=device),
+                     torch.zeros(rays, width, dtype=torch.float64, device=device))
+
+    @staticmethod
+    def stack(parts: list["Slabs"]) -> "Slabs":
+        """Slabs (Q, C_i) of several views as (V, Q, max C_i), the shorter padded."""
+        width = max(part.thickness_m.shape[-1] for part in parts)
+
+        def padded(tensors, value):
+            return torch.stack([torch.nn.functional.pad(t, (0, width - t.shape[-1]), value=value) for t in tensors])
+
+        return Slabs(padded([p.object_index for p in parts], 0), padded([p.cos_inc for p in parts], 1.0),
+                     padded([p.thickness_m for p in parts], 0.0))
+
+    def state(self) -> dict[str, torch.Tensor]:
+        """The tensors, as a checkpoint keeps them (``Slabs(**state)`` again)."""
+        return {"object_index": self.object_index, "cos_inc": self.cos_inc, "thickness_m": self.thickness_m}
+
+
+@dataclass(frozen=True)
 class LineOfSight:
-    """Per sample: ``factor`` (Q,) complex128, the product of the slabs' T on the way
-    (0 through metal, 1 in the clear); ``excess_m`` (Q,) float64, their summed one-way
-    excess path [m]; ``crossings`` (Q,) int64, the objects' faces the ray entered."""
+    """Per sample: ``factor`` (Q,) complex128, the product of the slabs' T on the way at
+    the centre frequency (0 through metal, 1 in the clear); ``excess_m`` (Q,) float64, their
+    summed one-way excess path [m]; ``crossings`` (Q,) int64, the objects' faces the ray
+    entered; ``slabs`` (Q, C) the dielectric slabs among them."""
 
     factor: torch.Tensor
     excess_m: torch.Tensor
     crossings: torch.Tensor
+    slabs: Slabs
 
 
 def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, centre_m: torch.Tensor,
@@ -57,6 +100,7 @@ def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, cen
         crossings = torch.zeros(q, dtype=torch.long, device=origins.device)
         eps = scene.permittivities(frequency_hz, origins.device)
         active = torch.arange(q, device=origins.device)
+        columns = []  # per face crossed: (object, cos, thickness) of every ray, (Q,) each, T = 1 where none
         for _ in range(max_crossings):
             entry = sphere_trace(scene.sdf, origins[active], direction[active], eps=_TRACE_EPS_M, max_steps=256,
                                  t_max=remaining[active])
@@ -77,6 +121,10 @@ def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, cen
             dielectric = ~torch.isinf(eps[which].real) & ~lost
             excess[active[dielectric]] += excess_path(cos_inc[dielectric], eps[which][dielectric].real,
                                                       thickness[dielectric])
+            column = Slabs.clear(q, 1, origins.device)[:, 0]  # (Q,) each: this face, for every ray
+            for values, found in zip(column.state().values(), (which, cos_inc, thickness)):
+                values[active[dielectric]] = found[dielectric]
+            columns.append(column.state().values())
             crossings[active] += 1
             advance = entry_t + chord + _STEP_IN_M
             origins[active] = origins[active] + advance[:, None] * direction[active]
@@ -85,33 +133,47 @@ def line_of_sight(scene: Scene, points: torch.Tensor, normals: torch.Tensor, cen
             active = active[keep]
         else:
             factor[active] = 0  # still crossing faces: as good as blocked
-        return LineOfSight(factor, excess, crossings)
+        slabs = (Slabs(*(torch.stack(parts, 1) for parts in zip(*columns))) if columns
+                 else Slabs.clear(q, 0, origins.device))
+        return LineOfSight(factor, excess, crossings, slabs)
 
 
 def through_objects(scene: Scene, points: torch.Tensor, normals: torch.Tensor, centre_m: torch.Tensor,
-                    frequency_hz: float, polarization: str = "mean") -> tuple[torch.Tensor, torch.Tensor]:
+                    frequency_hz: float, polarization: str = "mean") -> tuple[torch.Tensor, Slabs]:
     """Each surface sample's (Q, 3) [m], normals (Q, 3), two-way line of sight to
     ``centre_m`` (3,) [m] through the scene's objects (:func:`line_of_sight`): (Q,)
     complex128, T^2 of the slabs crossed at ``frequency_hz``, their excess path's phase
-    there included (0 for samples facing away or behind metal), and (Q,) float64 the
-    two-way excess path [m], whose delay relative to ``frequency_hz`` goes in at every
-    frequency (:func:`excess_delay`; the rest of T is taken as flat over the band)."""
+    there included (0 for samples facing away or behind metal), and the (Q, C) slabs
+    crossed, whose T at every other frequency :func:`band_factor` gives."""
     points, normals = points.double(), normals.double()
     facing = (((centre_m.to(points) - points) * normals).sum(1) > 0).nonzero().squeeze(1)
     sight = line_of_sight(scene, points[facing], normals[facing], centre_m, frequency_hz, polarization=polarization)
     factor = torch.zeros(len(points), dtype=torch.complex128, device=points.device)
     factor[facing] = sight.factor**2
-    excess = torch.zeros(len(points), dtype=torch.float64, device=points.device)
-    excess[facing] = 2 * sight.excess_m
-    return factor, excess
+    slabs = Slabs.clear(len(points), sight.slabs.thickness_m.shape[1], points.device)
+    for kept, found in zip(slabs.state().values(), sight.slabs.state().values()):
+        kept[facing] = found
+    return factor, slabs
 
 
-def excess_delay(frequencies_hz: torch.Tensor, centre_hz: float, excess_m: torch.Tensor) -> torch.Tensor:
-    """(K, Q) complex128: exp(-j (k - k_c) x), the delay of each sample's two-way excess path
-    x (Q,) [m] at each frequency (K,) [Hz] over its phase at the centre frequency, which
-    :func:`through_objects`'s factor carries (in T's own phase)."""
-    k = (2 * np.pi / SPEED_OF_LIGHT) * (frequencies_hz.to(excess_m.device, torch.float64) - centre_hz)
-    return torch.exp(-1j * k[:, None] * excess_m.double()[None])
+def band_factor(scene: Scene, slabs: Slabs, frequencies_hz: torch.Tensor, centre_hz: float,
+                polarization: str = "mean") -> torch.Tensor:
+    """(K, Q) complex128: prod over each ray's ``slabs`` (Q, C) of (T(f) / T(f_c))^2, the
+    two-way transmission at each frequency (K,) [Hz] over the centre frequency's, which
+    :func:`through_objects`'s factor carries: the slabs' delay and their resonances across
+    the band, each material's permittivity at each frequency (P.2040's f^b laws)."""
+    device = slabs.thickness_m.device
+    frequencies = [float(f) for f in frequencies_hz]
+
+    def transmission(frequency_hz: float) -> torch.Tensor:  # (Q,) prod of the slabs' T at one frequency
+        eps = scene.permittivities(frequency_hz, device)[slabs.object_index]
+        t = slab_coefficients(slabs.cos_inc, eps, slabs.thickness_m, frequency_hz, polarization)[1]
+        return torch.where(slabs.thickness_m > 0, t, 1).prod(dim=-1)  # the padding (any object's) passes
+
+    at_centre = transmission(centre_hz)
+    opaque = at_centre == 0  # a long lossy chord underflows: no return either way
+    at_centre = torch.where(opaque, torch.ones_like(at_centre), at_centre)
+    return torch.stack([torch.where(opaque, 0, transmission(f) / at_centre) ** 2 for f in frequencies])
 
 
 def thickness_along(scene: Scene, points: torch.Tensor, normals: torch.Tensor, object_index: torch.Tensor,

@@ -49,7 +49,7 @@ from ..radar.facets import facet_phase_weights
 from ..radar.imaging import require_image_memory
 from ..radar.scattering import DIFFUSE_WEIGHT, SPECULAR_EXPONENT, lit_mask, po_spectrum, scatter
 from ..radar.surface_plan import SURFACES
-from ..radar.transmission import excess_delay, through_objects
+from ..radar.transmission import Slabs, band_factor, through_objects
 from ..registry import Registry
 from ..scene import Scene
 from .surface import SurfaceCandidates, project_to_surface, surface_candidates
@@ -151,10 +151,10 @@ class CoherentRenderer:
         self.through = through
         self.candidates: SurfaceCandidates | SurfaceMesh | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
-        # (V, Q) complex128 and float64 [m]: each candidate's two-way line of sight through
-        # ``through`` and its excess path, per view (None without one)
+        # (V, Q) complex128 and (V, Q, C): each candidate's two-way line of sight through
+        # ``through`` at the centre frequency and the slabs it crosses, per view (None without one)
         self.sight: torch.Tensor | None = None
-        self.excess_m: torch.Tensor | None = None
+        self.slabs: Slabs | None = None
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
         self._fresnel: dict[tuple[str, ...], FresnelTable] = {}  # a material head's classes -> their table
 
@@ -210,9 +210,9 @@ class CoherentRenderer:
         ])
         if self.through is not None:
             centres = 0.5 * (self.tx_centres + self.rx_centres)
-            self.sight, self.excess_m = (torch.stack(parts) for parts in zip(*(
-                through_objects(self.through, anchors, normals, centre, self.centre_frequency_hz)
-                for centre in centres)))
+            sights, slabs = zip(*(through_objects(self.through, anchors, normals, centre, self.centre_frequency_hz)
+                                  for centre in centres))
+            self.sight, self.slabs = torch.stack(sights), Slabs.stack(list(slabs))
             self.lit = self.lit & (self.sight != 0)
 
     def surface_state(self) -> dict | None:
@@ -222,7 +222,8 @@ class CoherentRenderer:
         if cand is None:
             return None
         kept = cand.state() if isinstance(cand, SurfaceMesh) else dataclasses.asdict(cand)
-        return {"kind": self.surface, **kept, "lit": self.lit, "sight": self.sight, "excess_m": self.excess_m}
+        return {"kind": self.surface, **kept, "lit": self.lit, "sight": self.sight,
+                "slabs": None if self.slabs is None else self.slabs.state()}
 
     def load_surface_state(self, state: dict | None) -> None:
         """The surface and masks :meth:`surface_state` kept (None: none yet)."""
@@ -230,7 +231,8 @@ class CoherentRenderer:
             return
         state = dict(state)
         kind, self.lit = state.pop("kind"), state.pop("lit")
-        self.sight, self.excess_m = state.pop("sight", None), state.pop("excess_m", None)
+        self.sight, slabs = state.pop("sight", None), state.pop("slabs", None)
+        self.slabs = None if slabs is None else Slabs(**slabs)
         if kind != self.surface:
             raise ValueError(f"the checkpoint's surface is {kind}, this renderer's {self.surface}")
         self.candidates = SurfaceMesh.from_state(state) if kind == "facets" else SurfaceCandidates(**state)
@@ -238,13 +240,13 @@ class CoherentRenderer:
 
     def predict_data(self, view: int, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor,
                      reflection, corners_m: torch.Tensor | None = None, sight: torch.Tensor | None = None,
-                     excess_m: torch.Tensor | None = None) -> torch.Tensor:
+                     slabs: Slabs | None = None) -> torch.Tensor:
         """y_v = A_v c_v (F, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
         c_v (F, Q) from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there) in each
         of its frames, and for
         facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
         the phase integral across each at each frequency; seen through objects, times each
-        sample's ``sight`` (Q,) and delayed by its ``excess_m`` (Q,) [m] (``through``). The
+        sample's ``sight`` (Q,) and its ``slabs`` (Q, C) at each frequency (``through``). The
         simulator's data, for the simulator's samples and their Fresnel reflection."""
         tx, rx = self.tx_centres[view], self.rx_centres[view]
         # each frame's lobe towards its own phase centres, as the simulator's (a scan's frames
@@ -257,9 +259,9 @@ class CoherentRenderer:
         spectrum = None  # (K, Q): what each frequency adds, alike in every frame (from the view's centre)
         if corners_m is not None:
             spectrum = facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)
-        if excess_m is not None:
-            delay = excess_delay(self.frequencies_hz, self.centre_frequency_hz, excess_m).to(c.dtype)
-            spectrum = delay if spectrum is None else spectrum * delay
+        if slabs is not None:
+            band = band_factor(self.through, slabs, self.frequencies_hz, self.centre_frequency_hz).to(c.dtype)
+            spectrum = band if spectrum is None else spectrum * band
         return self.operators[view].forward(points, c, spectrum=spectrum) * self.po_spectrum.to(c.dtype)
 
     def class_permittivities(self, materials: tuple[str, ...]) -> torch.Tensor:
@@ -341,7 +343,8 @@ class CoherentRenderer:
                 image = torch.zeros((len(self.band_masks), len(targets)) if bands else (len(targets),),
                                     dtype=complex_dtype, device=self.device)
             else:
-                through = {} if self.sight is None else {"sight": self.sight[v, idx], "excess_m": self.excess_m[v, idx]}
+                through = {} if self.sight is None else {
+                    "sight": self.sight[v, idx], "slabs": None if self.slabs is None else self.slabs[v, idx]}
                 y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
                                       None if corners is None else corners[idx], **through)
                 image = (self._band_images(v, y, targets, norms) if bands
