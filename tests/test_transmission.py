@@ -144,18 +144,35 @@ def test_metal_blocks_and_the_opaque_model_stays_the_default(bare):
     assert opaque < 0.01 * bare[1]  # the slab hides the plate (what is left: the slab's range sidelobes)
 
 
-def test_a_sheet_reflects_as_a_slab_with_transmission_and_as_a_half_space_without():
-    """3 mm of glass, 2 x 2 cm (within 3 degrees of normal incidence): its front face's return
-    is P.2040's slab R (internal reflections summed, its back face's echo 15 mm behind, within
-    a range cell) over the half space's Gamma, within 3 % (measured 2 %: the rim's facets, whose
-    lighting ray leaves through the side, and the 3 degrees)."""
-    sheet = _scene(_slab("glass", 3e-3, half_m=0.01))
-    _, slab = _plate_peak(sheet, within_m=(0.15, 0.25))
-    _, half_space = _plate_peak(sheet, transmission=False, within_m=(0.15, 0.25))
-    f_c = float(FREQUENCIES.mean())
-    eps = get_material("glass").permittivity(f_c)
-    r = complex(slab_coefficients(1.0, eps, 3e-3, f_c, "mean")[0])
-    assert slab / half_space == pytest.approx(abs(r) / float(fresnel(0.0, eps, "mean").abs()), rel=0.03)
+@pytest.mark.parametrize("material", ["glass", "plasterboard"])
+def test_a_sheet_reflects_as_a_slab_over_the_band_with_transmission_and_as_a_half_space_without(material):
+    """A 2 x 2 cm sheet (3 mm of glass, 6 mm of plasterboard; within 3 degrees of normal
+    incidence): its front face's range profile is the half space's times P.2040's slab R over
+    the half space's Gamma at each frequency (internal reflections summed, its back face's
+    echo within a range cell; |R / Gamma| turns 0.49-0.79 over the band for the glass), within
+    3 % (relative L2; measured 1.3-1.7 %: the rim's facets, whose lighting ray leaves through
+    the side); the centre frequency's R alone is over 8 % off."""
+    thickness_m = {"glass": 3e-3, "plasterboard": 6e-3}[material]
+    sheet = _scene(_slab(material, thickness_m, half_m=0.01))
+    k = 2 * np.pi * FREQUENCIES / SPEED_OF_LIGHT
+    ranges = np.arange(0.15, 0.25, 1e-4)
+
+    def profile(transmission: bool, model=1.0) -> np.ndarray:  # the complex Hann-windowed range profile
+        y = simulate(sheet, _radar(), transmission=transmission).data[0, 0, 0].numpy().astype(complex)
+        return np.exp(2j * np.outer(ranges, k)) @ (np.hanning(len(k)) * y * model)
+
+    def over_gamma(frequency_hz) -> complex:
+        eps = get_material(material).permittivity(frequency_hz)
+        return complex(slab_coefficients(1.0, eps, thickness_m, frequency_hz, "mean")[0] / fresnel(0.0, eps, "mean"))
+
+    slab = profile(True)
+
+    def misfit(model) -> float:
+        expected = profile(False, model)
+        return float(np.linalg.norm(slab - expected) / np.linalg.norm(expected))
+
+    band = np.array([over_gamma(f) for f in FREQUENCIES])
+    assert misfit(band) < 0.03 and misfit(over_gamma(float(FREQUENCIES.mean()))) > 0.08
 
 
 @pytest.mark.parametrize("name", [n for n, m in MATERIALS.items() if not m.pec and m.in_band(79e9)])

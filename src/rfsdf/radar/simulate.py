@@ -16,7 +16,6 @@ import numpy as np
 import torch
 
 from ..materials import fresnel
-from ..slab import slab_coefficients
 from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
 from .acquisition import SPEED_OF_LIGHT, Acquisition, Measurements
@@ -26,7 +25,7 @@ from .facets import facet_weight
 from .surface_plan import surface_samples
 from .system import Radar
 from .waveform import range_resolution_m
-from .transmission import Slabs, band_factor, thin_slabs, through_objects
+from .transmission import Slabs, band_factor, sheet_reflection, thin_slabs, through_objects
 
 __all__ = ["simulate", "surface_reflectivity", "view_reflectivities", "add_noise", "noise_draw", "SAMPLES_PER_WAVELENGTH",
            "SIMULATED_GAIN"]
@@ -59,14 +58,13 @@ def surface_reflectivity(
     sample's material at ``frequency_hz`` and the scene itself as the occluder. ``slab_m``
     (Q,) [m] each sample's thickness as a thin slab along its lighting ray, 0 for a half
     space (:func:`~rfsdf.radar.transmission.thin_slabs`): a sample with one reflects as that
-    slab, internal reflections summed (:func:`~rfsdf.slab.slab_coefficients`)."""
+    slab, whose R (internal reflections summed) turns over the band, so its reflectivity here
+    is without it, and R goes in at every frequency (:func:`~rfsdf.radar.transmission.sheet_reflection`)."""
     sample_eps = scene.permittivities(frequency_hz, points.device)[object_index]
     reflection = lambda cos_inc: fresnel(torch.arccos(cos_inc), sample_eps, polarization)  # noqa: E731
     if slab_m is not None:
-        slab_m, half_space = slab_m.to(points.device), reflection
-        reflection = lambda cos_inc: torch.where(  # noqa: E731
-            slab_m > 0, slab_coefficients(cos_inc, sample_eps, slab_m, frequency_hz, polarization)[0],
-            half_space(cos_inc))
+        sheet, half_space = slab_m.to(points.device) > 0, reflection
+        reflection = lambda cos_inc: torch.where(sheet, 1, half_space(cos_inc))  # noqa: E731
     c = scatter(points.double(), normals.double(), area_m2.double(), reflection,
                 tx_centre.double(), rx_centre.double(), 2 * np.pi * frequency_hz / SPEED_OF_LIGHT,
                 specular_exponent=specular_exponent, diffuse_weight=diffuse_weight,
@@ -93,13 +91,15 @@ def view_reflectivities(scene: Scene, samples: SurfaceSamples, acquisition: Acqu
     return c if sight is None else c * sight.to(device=device, dtype=c.dtype)
 
 
-def _through(weight, scene: Scene, acquisition: Acquisition, slabs: Slabs, polarization: str, views: slice,
-             points: slice) -> torch.Tensor:
+def _through(weight, scene: Scene, acquisition: Acquisition, slabs: Slabs, sheets: Slabs, polarization: str,
+             views: slice, points: slice) -> torch.Tensor:
     """A chunk's per-frequency weight (v, K, q) (:meth:`SensingOperator.forward_weighted`):
     ``weight``'s (None: 1) times each point's slabs' two-way T at each frequency over the
-    centre frequency's (:func:`band_factor`)."""
-    band = band_factor(scene, slabs[points], acquisition.frequencies_hz, acquisition.center_frequency_hz,
-                       polarization)  # (K, q)
+    centre frequency's (:func:`band_factor`) and its own thin sheet's R at each frequency
+    (:func:`sheet_reflection`)."""
+    band = (band_factor(scene, slabs[points], acquisition.frequencies_hz, acquisition.center_frequency_hz,
+                        polarization)
+            * sheet_reflection(scene, sheets[points], acquisition.frequencies_hz, polarization))  # (K, q)
     if weight is None:
         return band[None].expand(len(acquisition.tx_m[views]), -1, -1)
     facets = weight(views, points)
@@ -165,19 +165,20 @@ def simulate(
     points = scene.rough_points(samples)
 
     def measure(part: Acquisition, sight: torch.Tensor | None = None, slabs: Slabs | None = None,
-                slab: torch.Tensor | None = None, show: bool = progress) -> torch.Tensor:
+                sheets: Slabs | None = None, show: bool = progress) -> torch.Tensor:
         """y = A c of the frames of ``part``, (F, T, R, K) on the CPU; with ``sight`` (Q,)
         (bool or complex: each sample's line of sight, found once for these frames) summed
         over the samples some frame sees (a scan: about half), each through its ``slabs``
-        (Q, C) at every frequency (:func:`band_factor`), and reflecting as a thin slab of
-        ``slab`` (Q,) [m]."""
-        c = view_reflectivities(scene, samples, part, sight=sight, progress=show, slab_m=slab, **scattering)
+        (Q, C) and reflecting as its own thin sheet ``sheets`` (Q, 1) at every frequency."""
+        slab_m = None if sheets is None else sheets.thickness_m[:, 0]
+        c = view_reflectivities(scene, samples, part, sight=sight, progress=show, slab_m=slab_m, **scattering)
         seen = (c != 0).any(0) if sight is not None else torch.ones(c.shape[1], dtype=torch.bool, device=c.device)
         operator, c = SensingOperator(part), c[:, seen]
         weight = None if samples.corners_m is None else facet_weight(part, samples.points[seen],
                                                                       samples.corners_m[seen])
         if slabs is not None:
-            weight = partial(_through, weight, scene, part, slabs[seen.to(slabs.thickness_m.device)], polarization)
+            kept = seen.to(slabs.thickness_m.device)
+            weight = partial(_through, weight, scene, part, slabs[kept], sheets[kept], polarization)
         if weight is None:
             return operator.forward(points[seen], c, progress=show).cpu()
         return operator.forward_weighted(points[seen], c, weight, progress=show).cpu()
@@ -192,17 +193,17 @@ def simulate(
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
         centres = 0.5 * sum(acq.view_centres())  # (S, 3) each view's phase centre
         for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
-            centre, slabs, slab = centres[view].to(samples.points), None, None
+            centre, slabs, sheets = centres[view].to(samples.points), None, None
             if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
                 sight, slabs = through_objects(scene, samples.points, samples.normals, centre,
                                                 acq.center_frequency_hz, polarization)
-                slab = thin_slabs(scene, samples.points, samples.normals, samples.object_index, centre,
+                sheets = thin_slabs(scene, samples.points, samples.normals, samples.object_index, centre,
                                   acq.center_frequency_hz, range_resolution_m(acq.bandwidth_hz))
             else:
                 sight = (unblocked(samples.points, samples.normals, centre, scene.sdf)
                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
             for part in acq.frames(view).split(chunk):
-                y[part] = measure(acq.view(part), sight, slabs, slab, show=False)
+                y[part] = measure(acq.view(part), sight, slabs, sheets, show=False)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:
