@@ -247,7 +247,7 @@ def test_the_renderer_sees_a_ball_through_a_sheet_as_the_simulator_does():
         with torch.no_grad():
             renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
             if case == "undelayed":  # T at the centre frequency alone, flat over the band
-                renderer.slabs = None
+                renderer.through_spectrum = None
             predicted = renderer(truth, torch.arange(renderer.num_views), voxels)
         observed = (renderer.observed * renderer.observed_peak)[:, voxels]
         inner = (predicted.conj() * observed).sum(1)

@@ -184,11 +184,14 @@ def sheet_reflection(scene: Scene, sheets: Slabs, frequencies_hz: torch.Tensor, 
 
 
 def _coefficients(scene: Scene, slabs: Slabs, frequency_hz: float, polarization: str) -> tuple[torch.Tensor, torch.Tensor]:
-    """(R, T) (Q, C) complex128 of the slabs at ``frequency_hz``; the padding (slabs of no
-    thickness, of any object) passes: T = 1."""
-    eps = scene.permittivities(frequency_hz, slabs.thickness_m.device)[slabs.object_index]
-    r, t = slab_coefficients(slabs.cos_inc, eps, slabs.thickness_m, frequency_hz, polarization)
-    return r, torch.where(slabs.thickness_m > 0, t, 1)
+    """(R, T) (Q, C) complex128 of the slabs at ``frequency_hz``, computed where they have a
+    thickness; the padding (slabs of none, of any object) passes: R = 0, T = 1."""
+    some = (slabs.thickness_m > 0).nonzero(as_tuple=True)
+    eps = scene.permittivities(frequency_hz, slabs.thickness_m.device)[slabs.object_index[some]]
+    r = torch.zeros(slabs.thickness_m.shape, dtype=torch.complex128, device=slabs.thickness_m.device)
+    t = torch.ones_like(r)
+    r[some], t[some] = slab_coefficients(slabs.cos_inc[some], eps, slabs.thickness_m[some], frequency_hz, polarization)
+    return r, t
 
 
 def thickness_along(scene: Scene, points: torch.Tensor, normals: torch.Tensor, object_index: torch.Tensor,

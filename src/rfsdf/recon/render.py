@@ -84,8 +84,8 @@ class CoherentRenderer:
     through : a known scene the fitted surface is seen through (a box the objects stand in,
     whose own return the caller took out of the data): each surface sample's return is
     weighted by its two-way line of sight through that scene's objects from each view's
-    phase centre (T^2 of the slabs crossed, and their excess path as a delay at every
-    frequency; :func:`~rfsdf.radar.transmission.through_objects`), found at each refresh
+    phase centre (T^2 of the slabs crossed at every frequency, their excess path's delay
+    and resonances; :func:`~rfsdf.radar.transmission.through_objects`), found at each refresh
     like the shadows; None: nothing in the way but the fitted surface itself.
     """
 
@@ -152,9 +152,11 @@ class CoherentRenderer:
         self.candidates: SurfaceCandidates | SurfaceMesh | None = None
         self.lit: torch.Tensor | None = None  # (V, Q) bool
         # (V, Q) complex128 and (V, Q, C): each candidate's two-way line of sight through
-        # ``through`` at the centre frequency and the slabs it crosses, per view (None without one)
+        # ``through`` at the centre frequency and the slabs it crosses, per view, and (V, K, Q)
+        # complex64 their T at each frequency over the centre's (None without one)
         self.sight: torch.Tensor | None = None
         self.slabs: Slabs | None = None
+        self.through_spectrum: torch.Tensor | None = None
         self._features: torch.Tensor | None = None  # the geometry features at the candidates, while f is held
         self._fresnel: dict[tuple[str, ...], FresnelTable] = {}  # a material head's classes -> their table
 
@@ -214,6 +216,7 @@ class CoherentRenderer:
                                   for centre in centres))
             self.sight, self.slabs = torch.stack(sights), Slabs.stack(list(slabs))
             self.lit = self.lit & (self.sight != 0)
+            self.through_spectrum = self._through_spectrum()
 
     def surface_state(self) -> dict | None:
         """The surface as a checkpoint keeps it (tensors and numbers), with its masks; None
@@ -233,20 +236,34 @@ class CoherentRenderer:
         kind, self.lit = state.pop("kind"), state.pop("lit")
         self.sight, slabs = state.pop("sight", None), state.pop("slabs", None)
         self.slabs = None if slabs is None else Slabs(**slabs)
+        self.through_spectrum = None if slabs is None else self._through_spectrum()
         if kind != self.surface:
             raise ValueError(f"the checkpoint's surface is {kind}, this renderer's {self.surface}")
         self.candidates = SurfaceMesh.from_state(state) if kind == "facets" else SurfaceCandidates(**state)
         self._features = None
 
+    def _through_spectrum(self) -> torch.Tensor:
+        """(V, K, Q) complex64: each view's lit candidates' slabs' T at the data's frequencies
+        over the centre frequency's (:func:`~rfsdf.radar.transmission.band_factor`; 0 where
+        unlit), found once per refresh."""
+        spectrum = torch.zeros((self.num_views, len(self.frequencies_hz), self.lit.shape[1]), dtype=torch.complex64,
+                               device=self.device)
+        for v in range(self.num_views):
+            idx = self.lit[v].nonzero().squeeze(1)
+            spectrum[v][:, idx] = band_factor(self.through, self.slabs[v, idx], self.frequencies_hz,
+                                              self.centre_frequency_hz).to(spectrum.dtype)
+        return spectrum
+
     def predict_data(self, view: int, points: torch.Tensor, normals: torch.Tensor, area_m2: torch.Tensor,
                      reflection, corners_m: torch.Tensor | None = None, sight: torch.Tensor | None = None,
-                     slabs: Slabs | None = None) -> torch.Tensor:
+                     through_spectrum: torch.Tensor | None = None) -> torch.Tensor:
         """y_v = A_v c_v (F, T, R, K) of surface samples (Q, 3) [m] lit in view ``view``, with
         c_v (F, Q) from :func:`~rfsdf.radar.scattering.scatter` (``reflection`` as there) in each
         of its frames, and for
         facets (their ``corners_m`` (Q, 3, 3) [m] relative to the centroids ``points``) times
         the phase integral across each at each frequency; seen through objects, times each
-        sample's ``sight`` (Q,) and its ``slabs`` (Q, C) at each frequency (``through``). The
+        sample's ``sight`` (Q,) and its ``through_spectrum`` (K, Q) (``through``: its slabs'
+        T over the band). The
         simulator's data, for the simulator's samples and their Fresnel reflection."""
         tx, rx = self.tx_centres[view], self.rx_centres[view]
         # each frame's lobe towards its own phase centres, as the simulator's (a scan's frames
@@ -259,8 +276,8 @@ class CoherentRenderer:
         spectrum = None  # (K, Q): what each frequency adds, alike in every frame (from the view's centre)
         if corners_m is not None:
             spectrum = facet_phase_weights(points, corners_m, tx, rx, self.wavenumbers_rad_m).to(c.dtype)
-        if slabs is not None:
-            band = band_factor(self.through, slabs, self.frequencies_hz, self.centre_frequency_hz).to(c.dtype)
+        if through_spectrum is not None:
+            band = through_spectrum.to(c.dtype)
             spectrum = band if spectrum is None else spectrum * band
         return self.operators[view].forward(points, c, spectrum=spectrum) * self.po_spectrum.to(c.dtype)
 
@@ -344,7 +361,8 @@ class CoherentRenderer:
                                     dtype=complex_dtype, device=self.device)
             else:
                 through = {} if self.sight is None else {
-                    "sight": self.sight[v, idx], "slabs": None if self.slabs is None else self.slabs[v, idx]}
+                    "sight": self.sight[v, idx],
+                    "through_spectrum": None if self.through_spectrum is None else self.through_spectrum[v][:, idx]}
                 y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
                                       None if corners is None else corners[idx], **through)
                 image = (self._band_images(v, y, targets, norms) if bands
