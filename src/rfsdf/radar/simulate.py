@@ -99,7 +99,8 @@ def _through(weight, scene: Scene, acquisition: Acquisition, slabs: Slabs, sheet
     (:func:`sheet_reflection`)."""
     band = (band_factor(scene, slabs[points], acquisition.frequencies_hz, acquisition.center_frequency_hz,
                         polarization)
-            * sheet_reflection(scene, sheets[points], acquisition.frequencies_hz, polarization))  # (K, q)
+            * sheet_reflection(scene, sheets[points], acquisition.frequencies_hz, acquisition.center_frequency_hz,
+                               polarization))  # (K, q)
     if weight is None:
         return band[None].expand(len(acquisition.tx_m[views]), -1, -1)
     facets = weight(views, points)
