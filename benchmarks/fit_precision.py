@@ -77,7 +77,8 @@ def main() -> None:
                      "train": {**settings.recon.get("train", {}), **overrides.get("train", {}), "seed": args.seed,
                                "device": str(device)}}
         config = with_scene_reference(ReconConfig.model_validate(overrides), scene, settings)
-        reference = scene_reference(scene, config.calibration, data.measurements.acquisition)
+        reference = (None if config.calibration.reference is None
+                         else scene_reference(scene, config.calibration, data.measurements.acquisition))
         problem = Problem(data.measurements, grid, clean=clean,
                           known_materials=reference.labels(tuple(config.field.materials)))
         return Trainer(problem, config, folder, start=start)

@@ -72,7 +72,8 @@ def main() -> None:
         for variant, overrides in VARIANTS.items():
             recon = {**settings.recon, **overrides, "train": {"seed": seed, "device": str(device)}}
             config = with_scene_reference(ReconConfig.model_validate(recon), scene, settings)
-            reference = scene_reference(scene, config.calibration, data.measurements.acquisition)
+            reference = (None if config.calibration.reference is None
+                         else scene_reference(scene, config.calibration, data.measurements.acquisition))
             problem = Problem(data.measurements, grid, clean=clean, image=data.image,
                               known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
             with tempfile.TemporaryDirectory() as folder:
