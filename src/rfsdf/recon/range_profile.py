@@ -32,7 +32,9 @@ source's.
 The loss compares amplitude profiles (square roots, normalised per view: the gain is
 unknown) by least squares, both blurred by a Gaussian whose width shrinks from
 ``blur_start_m`` to 0 over the fit: a coarse-to-fine schedule over range, so a wall 15 cm
-off still overlaps its own peak at the start. What this model leaves out: multipath (a
+off still overlaps its own peak at the start. The data's noise is part of the model's
+profile (:func:`noise_floor`, added to the model's scaled to the data), so a wall a few dB
+over the noise still has the loss's minimum at it. What this model leaves out: multipath (a
 wall's image of another wall, the corner's double bounce) and range ambiguity (returns
 beyond c / (2 delta f) fold back); both would enter as extra terms of the model's profile.
 
@@ -67,7 +69,7 @@ from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
 from .schedules import exponential_decay
 
-__all__ = ["ProfileSettings", "path_axis", "data_profiles", "model_profiles", "profile_loss",
+__all__ = ["ProfileSettings", "path_axis", "data_profiles", "model_profiles", "noise_floor", "profile_loss",
            "fit_primitive_profiles", "fit_profiles", "image_source_reflectivities"]
 
 _HANN_FWHM = 1.44  # Hann window's main-lobe width at half power, in units of c / B (path)
@@ -178,8 +180,8 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
     rays = torch.arange(len(directions))
     travelled = torch.zeros(len(directions), dtype=torch.float64)  # along each ray, to where its trace starts
     factor = torch.ones(len(directions), dtype=torch.complex128)  # T of the slabs crossed so far
-    excess = torch.zeros(len(directions), dtype=torch.float64)
-    found: list[tuple] = []  # (rays, t, |T|, excess, reflectivity) of each round's hits
+    delays = torch.zeros(len(directions), dtype=torch.float64)
+    found: list[tuple] = []  # (rays, t, |T|, delay, reflectivity) of each round's hits
     for _ in range(MAX_CROSSINGS + 1 if transmission else 1):
         trace = sphere_trace(lambda p: step * frozen(p), origins[rays] + travelled[rays, None] * directions[rays],
                              directions[rays], eps=1e-5 * step, max_steps=int(256 / step),
@@ -189,7 +191,7 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
         with torch.no_grad():
             probabilities = field.material(points)
             reflectivity = mixture_fresnel(torch.ones_like(t), probabilities, eps, "mean").abs()
-        found.append([rays, t, factor[rays].abs(), excess[rays].clone(), reflectivity])
+        found.append([rays, t, factor[rays].abs(), delays[rays].clone(), reflectivity])
         if not transmission:
             break
         with torch.no_grad():
@@ -207,7 +209,7 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
             found[-1][4][inside[thin]] = r[thin].abs()  # a thin sheet reflects as its slab
             crossing = rays[inside[leave.hit]]
             factor[crossing] *= tr[leave.hit]
-            excess[crossing] += excess_path(cos[leave.hit], slab[inside][leave.hit].real, thickness[leave.hit])
+            delays[crossing] += excess_path(cos[leave.hit], slab[inside][leave.hit].real, thickness[leave.hit])
             travelled[crossing] = t[inside[leave.hit]] + leave.t[leave.hit] + 2 * _STEP_IN_M
             rays = crossing
         if not len(rays):
@@ -327,9 +329,29 @@ def _amplitudes(profiles: torch.Tensor) -> torch.Tensor:
     return amplitude / amplitude.norm(dim=1, keepdim=True).clamp(min=1e-30)
 
 
-def profile_loss(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def noise_floor(measurements: Measurements, profiles: torch.Tensor) -> torch.Tensor:
+    """(V, 1) the noise power per bin of the data's (V, P) range ``profiles``: sigma^2 sum w_k^2
+    where the data's noise is known (a simulation's), else each view's median bin (most of a
+    profile's path is empty: on ``box_knife`` at 20 dB the median is 0.95-1.01 of the known floor)."""
+    if measurements.noise_std is None or not math.isfinite(measurements.noise_std):
+        return profiles.median(dim=1, keepdim=True).values
+    window = _window(len(measurements.acquisition.frequencies_hz))
+    return torch.full((len(profiles), 1), measurements.noise_std ** 2 * float((window ** 2).sum()), dtype=profiles.dtype)
+
+
+def profile_loss(predicted: torch.Tensor, target: torch.Tensor, floor: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over views of the squared distance between the (V, P) power profiles'
-    amplitudes, each view normalised (the gain is unknown)."""
+    amplitudes, each view normalised (the gain is unknown). With the data's noise ``floor``
+    (V, 1) the model's profile is g_v P_v + floor, g_v >= 0 by least squares on power (held
+    for the gradient): where a view's walls stand a few dB over its noise (behind
+    ``box_knife``'s glass at 20 dB), the noise fills most of the data's normalised profile and,
+    left out of the model, flattened the loss (its minimum 6 and 63 cm off those walls, with
+    the floor 1 cm)."""
+    if floor is not None:
+        with torch.no_grad():
+            gain = ((predicted * (target - floor)).sum(1, keepdim=True).clamp(min=0)
+                    / (predicted ** 2).sum(1, keepdim=True).clamp(min=torch.finfo(predicted.dtype).tiny))
+        predicted = gain * predicted + floor
     return ((_amplitudes(predicted) - _amplitudes(target)) ** 2).sum(1).mean()
 
 
@@ -377,6 +399,7 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
     (``blur``) or none; ``prior()`` is added to each step's loss. Returns the data loss per step."""
     path = path_axis(measurements, settings.step_m, settings.near_m)
     data = data_profiles(measurements, path)
+    floor = noise_floor(measurements, data)  # the blur's unit-sum kernel keeps it
     optimizer = torch.optim.Adam(groups)
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: exponential_decay(step, steps - 1, 1.0, 0.1))
     losses = []
@@ -385,7 +408,7 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
         predicted = model_profiles(field, measurements, path, rays_per_side=settings.rays_per_side,
                                    half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=width,
                                    transmission=settings.transmission)
-        loss = profile_loss(predicted, _blur(data, width, settings.step_m))
+        loss = profile_loss(predicted, _blur(data, width, settings.step_m), floor)
         optimizer.zero_grad(set_to_none=True)
         (loss if prior is None else loss + prior()).backward()
         optimizer.step()
