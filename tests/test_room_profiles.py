@@ -172,12 +172,13 @@ def _behind_glass(east) -> dict:
 def test_with_transmission_a_wall_behind_glass_votes_through_it(room_data):
     """A metal wall behind a 1 cm glass sheet, seen by the view facing it: opaque, the
     model's profile has the sheet alone and the wall nothing; with transmission the wall's
-    vote stands farther by twice the slab's excess path (P.2040, the simulator's own
-    delay), with |T|^4 of the bare wall's power, and the wall's distance carries its
-    gradient through the sheet (a central difference of the loss against the profile of the
-    wall where it is)."""
+    vote stands farther by twice the slab's delay over the band (where a profile through
+    P.2040's T(f)^2 peaks, tests/test_slab.py, as the simulator's data do), with |T|^4 of the bare
+    wall's power, and the wall's distance carries its gradient through the sheet (a central
+    difference of the loss against the profile of the wall where it is)."""
     from rfsdf.materials import get_material
-    from rfsdf.slab import excess_path, slab_coefficients
+    from rfsdf.recon.range_profile import DELAY_FREQUENCIES
+    from rfsdf.slab import band_delay, slab_coefficients
 
     acquisition_of = room_data[1]  # the model's profiles read only the acquisition
     glass_table = _behind_glass([1.2, 0.0, 1.5])
@@ -188,7 +189,11 @@ def test_with_transmission_a_wall_behind_glass_votes_through_it(room_data):
     centre_x = float(torch.cat([acq.tx_m, acq.rx_m], dim=1).mean(1)[east, 0])
     eps = complex(get_material("glass").permittivity(acq.center_frequency_hz))
     t = complex(slab_coefficients(1.0, eps, 0.01, acq.center_frequency_hz, "mean")[1])
-    wall = 2 * (1.19 - centre_x) + 2 * float(excess_path(1.0, eps.real, 0.01))
+    f = acq.frequencies_hz.double()
+    band = torch.linspace(float(f.min()), float(f.max()), DELAY_FREQUENCIES, dtype=torch.float64)
+    delay = band_delay(torch.tensor(1.0, dtype=torch.float64), lambda hz: get_material("glass").permittivity(hz), 0.01,
+                       acq.center_frequency_hz, band, torch.hann_window(len(band), periodic=False, dtype=torch.float64))
+    wall = 2 * (1.19 - centre_x) + 2 * float(delay)
     near = (path - wall).abs() < 0.03
 
     def profile(scene_table, transmission, x=None):

@@ -26,7 +26,7 @@ import torch
 
 from .materials import POLARIZATIONS, fresnel_of_cosine
 
-__all__ = ["slab_coefficients", "slab_over_band", "excess_path"]
+__all__ = ["slab_coefficients", "slab_over_band", "band_delay", "excess_path"]
 
 _SPEED_OF_LIGHT = 299_792_458.0  # [m/s]
 
@@ -87,6 +87,29 @@ def slab_over_band(cos_inc, permittivity: Callable[[float], torch.Tensor], thick
                         for te, tm in ((r_te, r_tm), (t_te, t_tm)))
         else:
             yield pairs[0]
+
+
+def band_delay(cos_inc, permittivity: Callable[[float], torch.Tensor], thickness_m, centre_hz: float,
+               frequencies_hz, window) -> torch.Tensor:
+    """The slab's one-way delay [m] (float64, broadcast of ``cos_inc`` and ``thickness_m``) as
+    a band sees it: -d arg T / dk, the slope of T's unwrapped phase over the wavenumber k by
+    least squares over ``frequencies_hz`` (F,) [Hz], each weighted by ``window`` (F,) times
+    |T|^4 (the round trip's power). A range profile through the slab peaks this far behind
+    (within 0.25 mm over 5 mm to 4 cm of glass, plasterboard and wood at 28, 60 and 79 GHz),
+    where its internal reflections move the excess path's estimate by up to 3 mm (2 cm of
+    glass over 26.5-29.5 GHz: 27.2 mm for 30.2). The frequencies must sample T's phase at
+    less than pi a step (unwrapped by its increments)."""
+    transmissions = torch.stack([t for _, t in slab_over_band(cos_inc, permittivity, thickness_m, centre_hz,
+                                                               frequencies_hz, "mean")])  # (F, ...)
+    steps = torch.angle(transmissions[1:] / transmissions[:-1])
+    phase = torch.cat([torch.zeros_like(steps[:1]), steps.cumsum(0)])
+    shape = (-1,) + (1,) * (phase.dim() - 1)
+    k = (2 * math.pi / _SPEED_OF_LIGHT * torch.as_tensor(frequencies_hz, dtype=torch.float64)).reshape(shape)
+    weight = torch.as_tensor(window, dtype=torch.float64).reshape(shape) * transmissions.abs() ** 4
+    total = weight.sum(0).clamp(min=torch.finfo(torch.float64).tiny)
+    k_mean, phase_mean = (weight * k).sum(0) / total, (weight * phase).sum(0) / total
+    slope = (weight * (k - k_mean) * (phase - phase_mean)).sum(0) / (weight * (k - k_mean) ** 2).sum(0)
+    return -slope
 
 
 def excess_path(cos_inc, eps_real, thickness_m) -> torch.Tensor:

@@ -42,7 +42,8 @@ With ``transmission`` (``ProfileSettings``), as the simulator's (:mod:`rfsdf.rad
 a ray that hits a dielectric goes on through it: the crossing is a slab of the chord's
 thickness times the incidence cosine, its own vote is the slab's reflection where the slab
 is thin (its round trip under the range resolution), and every hit behind it votes with
-|T|^4 of its power (T out and back) from farther by twice the slab's excess path. Metal
+|T|^4 of its power (T out and back) from farther by twice the slab's delay over the band
+(:func:`~rfsdf.slab.band_delay`: where the simulator's T over the band puts it). Metal
 stops the ray. The slabs' factors are held per step (their gradients left out), the hits'
 distances behind them carry theirs as any hit's.
 """
@@ -64,7 +65,7 @@ from ..progress import progress_bar
 from ..radar import SPEED_OF_LIGHT, Measurements
 from ..radar.scattering import SPECULAR_EXPONENT
 from ..radar.waveform import range_resolution_m
-from ..slab import excess_path, slab_coefficients
+from ..slab import band_delay, slab_coefficients
 from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
 from .schedules import exponential_decay
@@ -79,6 +80,7 @@ FOOT_TOLERANCE = 0.02
 _NEGLIGIBLE = 1e-6  # votes below this share of the strongest are dropped (most hits are far off specular)
 MAX_CROSSINGS = 4  # with transmission: dielectric objects a ray goes on through at most
 _STEP_IN_M = 4e-5  # a ray restarts this far past a face it crossed [m]
+DELAY_FREQUENCIES = 17  # a slab's delay over the band from its T at these many frequencies (rfsdf.slab.band_delay)
 
 
 def path_axis(measurements: Measurements, step_m: float, near_m: float) -> torch.Tensor:
@@ -148,7 +150,7 @@ class _Hits:
     ``pattern`` toward the foot (per element, squared in a channel), the share of the
     specular ``lobe`` its ray stands for, its ``reflectivity`` |Gamma(0)| (the material's,
     or a thin slab's |R|), and with transmission the ``power`` |T|^4 of the slabs its ray
-    crossed before it (1 in the clear) and their two-way excess path ``delay_m`` [m]."""
+    crossed before it (1 in the clear) and their two-way delay ``delay_m`` [m]."""
 
     view: torch.Tensor
     t: torch.Tensor
@@ -177,6 +179,8 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
     step = field.trace_step  # below 1 where f is no exact distance (the hybrid's residual)
     eps = class_permittivities(field.materials, acq.center_frequency_hz)
     resolution = range_resolution_m(acq.bandwidth_hz)  # a slab thinner (round trip) reflects as one
+    frequencies = acq.frequencies_hz.double()
+    band = torch.linspace(float(frequencies.min()), float(frequencies.max()), DELAY_FREQUENCIES, dtype=torch.float64)
     rays = torch.arange(len(directions))
     travelled = torch.zeros(len(directions), dtype=torch.float64)  # along each ray, to where its trace starts
     factor = torch.ones(len(directions), dtype=torch.complex128)  # T of the slabs crossed so far
@@ -209,7 +213,9 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
             found[-1][4][inside[thin]] = r[thin].abs()  # a thin sheet reflects as its slab
             crossing = rays[inside[leave.hit]]
             factor[crossing] *= tr[leave.hit]
-            delays[crossing] += excess_path(cos[leave.hit], slab[inside][leave.hit].real, thickness[leave.hit])
+            classes = probabilities.argmax(1)[inside][leave.hit]
+            delays[crossing] += band_delay(cos[leave.hit], lambda f: class_permittivities(field.materials, f)[classes],
+                                           thickness[leave.hit], acq.center_frequency_hz, band, _window(len(band)))
             travelled[crossing] = t[inside[leave.hit]] + leave.t[leave.hit] + 2 * _STEP_IN_M
             rays = crossing
         if not len(rays):
