@@ -106,7 +106,7 @@ def _write_image(image, out_image: Path, out_png: Path, title: str):
                    "or points (a Monte Carlo quadrature, for comparison).")
 @click.option("--transmission", is_flag=True,
               help="Lines of sight go on through dielectric objects (each a slab of the chord it cuts: ITU-R P.2040's "
-                   "T out and back, delayed by its excess path); metal still blocks. Default: opaque objects.")
+                   "T out and back at every frequency); metal still blocks. Default: opaque objects.")
 @device_option()
 @one_line_errors
 def simulate_cmd(scene_name: str | None, radar_name: str, out: Path, seed: int, random_count: int | None,

@@ -150,8 +150,8 @@ def simulate(
     summary is the metadata's "surface_sampling"). Rough objects need samples at most half
     their correlation length apart, else ValueError. With ``transmission`` a line of sight
     goes on through dielectric objects instead of stopping at them (each crossing a slab of
-    the chord's thickness: its T out and back at every frequency, the sample standing farther
-    by its excess path, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
+    the chord's thickness: its T out and back at every frequency, whose phase delays the
+    sample, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
     float rounding.
