@@ -181,6 +181,7 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
     resolution = range_resolution_m(acq.bandwidth_hz)  # a slab thinner (round trip) reflects as one
     frequencies = acq.frequencies_hz.double()
     band = torch.linspace(float(frequencies.min()), float(frequencies.max()), DELAY_FREQUENCIES, dtype=torch.float64)
+    band_window = _window(DELAY_FREQUENCIES)
     rays = torch.arange(len(directions))
     travelled = torch.zeros(len(directions), dtype=torch.float64)  # along each ray, to where its trace starts
     factor = torch.ones(len(directions), dtype=torch.complex128)  # T of the slabs crossed so far
@@ -199,7 +200,8 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
         if not transmission:
             break
         with torch.no_grad():
-            slab = eps[probabilities.argmax(1)]
+            classes = probabilities.argmax(1)
+            slab = eps[classes]
             inside = torch.isfinite(slab.real).nonzero().squeeze(1)  # metal stops the ray
             if not len(inside):
                 break
@@ -213,9 +215,9 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
             found[-1][4][inside[thin]] = r[thin].abs()  # a thin sheet reflects as its slab
             crossing = rays[inside[leave.hit]]
             factor[crossing] *= tr[leave.hit]
-            classes = probabilities.argmax(1)[inside][leave.hit]
-            delays[crossing] += band_delay(cos[leave.hit], lambda f: class_permittivities(field.materials, f)[classes],
-                                           thickness[leave.hit], acq.center_frequency_hz, band, _window(len(band)))
+            crossed = classes[inside][leave.hit]
+            delays[crossing] += band_delay(cos[leave.hit], lambda f: class_permittivities(field.materials, f)[crossed],
+                                           thickness[leave.hit], acq.center_frequency_hz, band, band_window)
             travelled[crossing] = t[inside[leave.hit]] + leave.t[leave.hit] + 2 * _STEP_IN_M
             rays = crossing
         if not len(rays):
