@@ -125,6 +125,25 @@ def test_range_peaks_place_a_point_between_voxel_centres_to_a_fraction_of_a_mill
     assert len(narrow.points) < len(peaks.points)  # ridges whose peak is over 0.5 mm away are dropped
 
 
+def test_a_glints_apex_is_the_strongest_peak_of_its_own_view_within_a_radius():
+    """Two glints of view 0 along a line (peaks 2 mm apart, their amplitude falling off each
+    side of a centre at 0 and at 40 mm), and view 1 with a weaker peak where view 0's centre
+    is: each view's apexes within 12 mm are the centres (view 1's own peak among them, another
+    view being no competitor); within 50 mm only the stronger glint's; ties are both kept."""
+    from rfsdf.radar.range_peaks import RangePeaks
+
+    x = np.arange(-0.006, 0.0461, 0.002)
+    amplitude = np.maximum(np.exp(-(x / 0.004) ** 2), 0.8 * np.exp(-((x - 0.04) / 0.004) ** 2))
+    points = np.stack([x, np.zeros_like(x), np.full_like(x, 0.3)], 1)
+    peaks = RangePeaks(np.concatenate([points, [[0.0, 0.0, 0.3]]]), np.concatenate([amplitude, [0.5]]),
+                       np.concatenate([np.zeros(len(x), int), [1]]), np.tile([0.0, 0.0, -1.0], (len(x) + 1, 1)))
+    centres = np.flatnonzero(peaks.apexes(0.012))
+    assert np.allclose(peaks.points[centres[:2], 0], [0.0, 0.04]) and centres[2] == len(x)
+    assert np.flatnonzero(peaks.apexes(0.05)).tolist() == [3, len(x)]
+    twins = RangePeaks(points[:2], np.ones(2), np.zeros(2, int), np.tile([0.0, 0.0, -1.0], (2, 1)))
+    assert twins.apexes(0.012).all()
+
+
 def test_range_sidelobes_match_the_dirichlet_kernel():
     """K uniform frequencies: the range profile is |sin(K x) / (K sin x)|, x = 2 pi delta_f d / c,
     its first null at c / 2B and its peak sidelobe (computed here from that closed form on a

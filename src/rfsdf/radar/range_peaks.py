@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 
 from ..scene import Scene
 from .acquisition import Measurements
@@ -74,6 +75,18 @@ class RangePeaks:
     def select(self, kept: np.ndarray) -> RangePeaks:
         """The peaks ``kept`` (N,) bool (or indices), amplitudes as they were."""
         return RangePeaks(self.points[kept], self.amplitude[kept], self.view[kept], self.towards[kept])
+
+    def apexes(self, radius_m: float) -> np.ndarray:
+        """(N,) bool: the peaks that are the strongest of their own view's within ``radius_m``
+        [m] (ties kept): each glint's centre, where the surface faces the view. Across a curved
+        glint the lines of sight beside its centre peak at the centre's range too (the array's
+        main lobe), on the glint's tangent plane, where the surface's normal is not the view's."""
+        apex = np.ones(len(self.points), bool)
+        for view in np.unique(self.view):
+            mine = np.flatnonzero(self.view == view)
+            for i, neighbours in zip(mine, cKDTree(self.points[mine]).query_ball_point(self.points[mine], radius_m)):
+                apex[i] = self.amplitude[i] >= self.amplitude[mine[neighbours]].max()
+        return apex
 
 
 def range_peaks(measurements: Measurements, per_view_power: np.ndarray, grid, *, threshold: float,
