@@ -435,6 +435,55 @@ def test_the_warm_start_passes_through_the_range_peaks_where_the_target_is_half_
     assert abs(offset[1.0]) < 0.001, offset
 
 
+def test_the_warm_start_turns_the_surface_at_the_range_peaks_towards_their_views():
+    """A ball regressed onto its own SDF, with range peaks on a flat top (a disc 4 cm across,
+    4 mm below the ball's pole) whose views look straight down on them (normals +z): both
+    pull the zero set through the peaks, and only with ``surface_normal_weight`` do its normals
+    there turn up as the views say (a specular return: the surface faces its view); the lower
+    half, which no peak touches, keeps its own."""
+    target = lambda p: p.norm(dim=1) - 0.05  # noqa: E731
+    draw = torch.Generator().manual_seed(1)
+    sphere = 0.05 * torch.nn.functional.normalize(torch.randn(3000, 3, generator=draw), dim=1)
+    angle, radius = 2 * torch.pi * torch.rand(500, generator=draw), 0.02 * torch.rand(500, generator=draw).sqrt()
+    disc = torch.stack([radius * torch.cos(angle), radius * torch.sin(angle), torch.full_like(angle, 0.046)], 1)
+    cap = disc + torch.tensor([0.0, 0.0, 0.003]) * (torch.rand(500, 1, generator=draw) - 0.5)  # peaks +-1.5 mm off
+    lower = sphere[sphere[:, 2] < -0.02]
+    up = torch.tensor([0.0, 0.0, 1.0]).expand(len(cap), 3)
+    result = {}
+    for weight in (0.0, 1.0):
+        torch.manual_seed(0)
+        field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=4, depth=4, width=64)
+        fit_to_image(field, (-0.1,) * 3, (0.1,) * 3, target, None, steps=150, lr=1e-3, batch=2048,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), near_m=sphere,
+                     near_share=0.25, near_jitter_m=0.006, surface_m=cap, surface_weights=torch.ones(len(cap)),
+                     surface_weight=1.0, surface_normals=up, surface_normal_weight=weight)
+        normal = lambda points: torch.nn.functional.normalize(gradient(field.sdf, points), dim=1)  # noqa: E731
+        with torch.no_grad():
+            offset = float(field.sdf(disc).abs().mean())
+        result[weight] = {"up": float(normal(disc)[:, 2].mean()), "offset_m": offset,
+                          "radial_below": float((normal(lower) * torch.nn.functional.normalize(lower, dim=1)).sum(1).mean())}
+    assert result[0.0]["up"] < 0.98 and result[1.0]["up"] > 0.99, result
+    assert max(r["offset_m"] for r in result.values()) < 0.001 and result[1.0]["radial_below"] > 0.95, result
+
+
+def test_a_range_peak_of_unknown_orientation_adds_nothing_to_the_warm_start():
+    """``surface_normals`` zero at a point (a peak beside its glint's centre): the normal term
+    leaves the fit exactly as with no normals at all."""
+    target = lambda p: p.norm(dim=1) - 0.05  # noqa: E731
+    sphere = 0.05 * torch.nn.functional.normalize(torch.randn(500, 3, generator=torch.Generator().manual_seed(1)),
+                                                  dim=1)
+    states = []
+    for normals in (None, torch.zeros_like(sphere)):
+        torch.manual_seed(0)
+        field = RadarField((-0.1,) * 3, (0.1,) * 3, levels=2, depth=3, width=32)
+        fit_to_image(field, (-0.1,) * 3, (0.1,) * 3, target, None, steps=5, lr=1e-3, batch=256,
+                     eikonal_weight=0.01, generator=torch.Generator().manual_seed(0), surface_m=sphere,
+                     surface_weights=torch.ones(len(sphere)), surface_weight=1.0, surface_normals=normals,
+                     surface_normal_weight=1.0)
+        states.append(field.state_dict())
+    assert all(torch.equal(states[0][key], states[1][key]) for key in states[0])
+
+
 def test_the_detection_target_closes_two_glints_of_one_object_into_one_volume():
     """Two bright 3-voxel cubes one voxel apart: without closing two inside sets (the gap
     outside), closed over 2 voxels one (the gap inside); far voxels are outside by their distance."""
@@ -521,7 +570,7 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
         settings["init"].update(method="mf", threshold=0.05, peak_weight=weight)
         trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{weight}")
         trainer.warm_start()
-        assert seen["peak_weight"] == weight
+        assert seen["peak_weight"] == weight and seen["peak_normal_weight"] == trainer.config.init.peak_normal_weight
         if weight == 0:
             assert seen["peaks"] is None
     grid = trainer.problem.grid

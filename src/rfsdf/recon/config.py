@@ -97,6 +97,16 @@ class InitConfig(StrictModel):
     # its matched filter (radar.range_peaks: 4.0 -> 1.2 mm from the truth, median, on the
     # demo), weight of that L1 term beside the target's; 0 turns it off
     peak_weight: NonNegativeFloat = 1.0
+    # ... and turn its normal towards the view at each glint's centre (a glint is a specular
+    # return: the surface there faces its view, within the array's cone), weight of the mean
+    # 1 - cos beside it; needs the peaks (peak_weight > 0); 0 (the default) turns it off: at
+    # 0.3 the demo's fit ends 0.1-0.3 mm nearer on the seen surface, but its glints render too
+    # bright for the materials (docs/results/demo-quality.md, "Normals at the range peaks")
+    peak_normal_weight: NonNegativeFloat = 0.0
+    # a glint's centre: a range peak that is the strongest of its view's within this [m]
+    # (RangePeaks.apexes); the peaks beside it stand on its tangent plane, and a normal turned
+    # there too flattens a curved glint (a metal ball's read 2.4x too bright); 0: every peak
+    peak_apex_m: NonNegativeFloat = 0.012
     # leave out of the range peaks, and of the detection where no view sees more, what a
     # view's glints explain in its own image as their sidelobes (range and lateral:
     # radar.glint_sidelobes): a metal ball's had held a lump 4 mm outside its far side, and

@@ -276,6 +276,7 @@ class Trainer:
                    window_m=ic.window_m, closing_m=ic.closing_m, steps=ic.steps, lr=ic.lr, batch=ic.batch,
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
                    peaks=peaks if ic.peak_weight > 0 else None, peak_weight=ic.peak_weight,
+                   peak_normal_weight=ic.peak_normal_weight, peak_apex_m=ic.peak_apex_m,
                    eikonal_weight=ic.eikonal_weight,
                    generator=self.generator, progress=self.progress)
 

@@ -118,7 +118,8 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                  near_m: torch.Tensor | None = None, near_share: float = 0.0, near_jitter_m: float = 0.0,
                  target_normal: Callable | None = None, normal_weight: float = 0.0,
                  surface_m: torch.Tensor | None = None, surface_weights: torch.Tensor | None = None,
-                 surface_weight: float = 0.0, progress: bool = False) -> float:
+                 surface_weight: float = 0.0, surface_normals: torch.Tensor | None = None,
+                 surface_normal_weight: float = 0.0, progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
     Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
@@ -132,7 +133,9 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     faces the views see turn towards where the views say they face, the others are left alone.
     With ``surface_m`` (M, 3) [m], points the surface is known to pass through, and their
     ``surface_weights`` (M,), the loss adds ``surface_weight`` * |f| at a quarter batch of them
-    drawn in proportion to their weights. The field's coarse displacement, where it has one,
+    drawn in proportion to their weights, and with their ``surface_normals`` (M, 3), unit or
+    zero where a point's orientation is not known, ``surface_normal_weight`` * |n| (1 - cos(grad
+    f, n)) at the same points: Hermite data. The field's coarse displacement, where it has one,
     stays as it is (zero): it is what the fit moves afterwards. Returns the last clipped L1
     residual of f [m].
     """
@@ -161,7 +164,14 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
             loss = loss + normal_weight * _facing_misfit(grad, target_normal(shaped), facing)
         if surface_m is not None and len(surface_m) and surface_weight > 0:
             pick = torch.multinomial(surface_weights, max(1, batch // 4), replacement=True, generator=generator)
-            loss = loss + surface_weight * field.sdf(surface_m[pick].to(device)).abs().mean()
+            on = surface_m[pick].to(device)
+            oriented = surface_normals is not None and surface_normal_weight > 0
+            f_on = field.sdf(on.requires_grad_(oriented))
+            loss = loss + surface_weight * f_on.abs().mean()
+            if oriented:
+                (grad_on,) = torch.autograd.grad(f_on.sum(), on, create_graph=True)
+                normals = surface_normals[pick].to(device)
+                loss = loss + surface_normal_weight * (normals.norm(dim=1) * _misalignment(grad_on, normals)).mean()
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
@@ -171,6 +181,11 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         optimizer.step()
         residual = float(misfit.detach())
     return residual
+
+
+def _misalignment(grad: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+    """(N,) 1 - cos of the angle between gradients (N, 3) and normals (N, 3): 0 aligned, 2 opposed."""
+    return 1 - (grad * normals).sum(1) / (grad.norm(dim=1) * normals.norm(dim=1)).clamp(min=1e-12)
 
 
 def _facing_misfit(grad: torch.Tensor, bisector: torch.Tensor, target_grad: torch.Tensor) -> torch.Tensor:
@@ -203,7 +218,7 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                near_share: float = 0.0, exclude: np.ndarray | None = None, normals: np.ndarray | None = None,
                normal_weight: float = 0.0, peaks: RangePeaks | None = None, peak_weight: float = 0.0,
-               progress: bool = False) -> float:
+               peak_normal_weight: float = 0.0, peak_apex_m: float = 0.0, progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
     signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
     amplitude (both interpolated between voxel centres), and with ``normals`` ((3, *grid.shape)
@@ -211,7 +226,10 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     them (``normal_weight``, see :func:`fit_to_image`). With ``peaks``
     (:func:`~rfsdf.radar.range_peaks.range_peaks`), the zero set is pulled through those within
     a voxel of the target's boundary (``peak_weight``, weighted by their amplitude): the
-    views' surface to a fraction of a voxel where the target has it to half of one.
+    views' surface to a fraction of a voxel where the target has it to half of one; and with
+    ``peak_normal_weight`` its normal towards the view at each glint's centre, the peaks that are
+    the strongest of their view's within ``peak_apex_m`` [m] (:meth:`RangePeaks.apexes`; 0: at
+    every peak): a glint is a specular return, the surface there faces its view.
     ``window_m`` [m] is the local window's edge. Returns the last clipped L1 residual of f [m]."""
     device = next(field.parameters()).device
     signed = detection_target(power, grid, threshold=threshold, local_threshold=local_threshold, window_m=window_m,
@@ -221,12 +239,14 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
     voxel = float(np.max(grid.voxel_m))
     near = grid.points()[torch.from_numpy(np.abs(signed).ravel() < voxel)]  # voxel centres by the boundary
     target = interpolated_sdf(distance, grid)
-    surface, weights = None, None
+    surface, weights, facing = None, None, None
     if peaks is not None and peak_weight > 0:
         surface = torch.from_numpy(peaks.points).float().to(device)
         on_boundary = target(surface).abs() <= voxel
         surface = surface[on_boundary]
         weights = torch.from_numpy(peaks.amplitude).float().to(device)[on_boundary]
+        apex = peaks.apexes(peak_apex_m) if peak_apex_m > 0 else np.ones(len(peaks.points), bool)
+        facing = torch.from_numpy(peaks.towards * apex[:, None]).float().to(device)[on_boundary]
     target_normal = None
     if normals is not None:
         target_normal = trilinear(torch.from_numpy(np.ascontiguousarray(normals)).to(device), grid)
@@ -234,5 +254,6 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                         trilinear(peak, grid), steps=steps, lr=lr, batch=batch,
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                         near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
-                        surface_m=surface, surface_weights=weights, surface_weight=peak_weight, progress=progress)
+                        surface_m=surface, surface_weights=weights, surface_weight=peak_weight,
+                        surface_normals=facing, surface_normal_weight=peak_normal_weight, progress=progress)
 
