@@ -171,7 +171,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
             if oriented:
                 (grad_on,) = torch.autograd.grad(f_on.sum(), on, create_graph=True)
                 normals = surface_normals[pick].to(device)
-                loss = loss + surface_normal_weight * (normals.norm(dim=1) * _misalignment(grad_on, normals)).mean()
+                loss = loss + surface_normal_weight * _misalignment(grad_on, normals).mean()
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
@@ -184,16 +184,16 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
 
 
 def _misalignment(grad: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
-    """(N,) 1 - cos of the angle between gradients (N, 3) and normals (N, 3): 0 aligned, 2 opposed."""
-    return 1 - (grad * normals).sum(1) / (grad.norm(dim=1) * normals.norm(dim=1)).clamp(min=1e-12)
+    """(N,) |n| (1 - cos(grad, n)) for gradients (N, 3) and normals n (N, 3), whose length is
+    how sure each is: 0 aligned or where n is zero (unknown), 2 |n| opposed."""
+    length = normals.norm(dim=1)
+    return length * (1 - (grad * normals).sum(1) / (grad.norm(dim=1) * length).clamp(min=1e-12))
 
 
 def _facing_misfit(grad: torch.Tensor, bisector: torch.Tensor, target_grad: torch.Tensor) -> torch.Tensor:
     """mean |m| (1 - cos(grad, m)) over the points (N,) where the target's own normal faces m
     (gated by the fixed target, not by f, so a face turning away cannot drag its neighbours)."""
-    agreement = bisector.norm(dim=1)
-    cosine = (grad * bisector).sum(1) / (grad.norm(dim=1) * agreement).clamp(min=1e-12)
-    return (agreement * (1 - cosine) * ((target_grad * bisector).sum(1) > 0)).mean()
+    return (_misalignment(grad, bisector) * ((target_grad * bisector).sum(1) > 0)).mean()
 
 
 def detection_target(power: np.ndarray, grid: Grid, *, threshold: float, local_threshold: float, window_m: float,
@@ -245,8 +245,9 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
         on_boundary = target(surface).abs() <= voxel
         surface = surface[on_boundary]
         weights = torch.from_numpy(peaks.amplitude).float().to(device)[on_boundary]
-        apex = peaks.apexes(peak_apex_m) if peak_apex_m > 0 else np.ones(len(peaks.points), bool)
-        facing = torch.from_numpy(peaks.towards * apex[:, None]).float().to(device)[on_boundary]
+        if peak_normal_weight > 0:
+            apex = peaks.apexes(peak_apex_m) if peak_apex_m > 0 else np.ones(len(peaks.points), bool)
+            facing = torch.from_numpy(peaks.towards * apex[:, None]).float().to(device)[on_boundary]
     target_normal = None
     if normals is not None:
         target_normal = trilinear(torch.from_numpy(np.ascontiguousarray(normals)).to(device), grid)
