@@ -439,8 +439,9 @@ def test_the_warm_start_turns_the_surface_at_the_range_peaks_towards_their_views
     """A ball regressed onto its own SDF, with range peaks on a flat top (a disc 4 cm across,
     4 mm below the ball's pole) whose views look straight down on them (normals +z): both
     pull the zero set through the peaks, and only with ``surface_normal_weight`` do its normals
-    there turn up as the views say (a specular return: the surface faces its view); the lower
-    half, which no peak touches, keeps its own."""
+    there turn up as the views say (a specular return: the surface faces its view; their tilt
+    at least ten times smaller than the noisy positions leave, whatever the thread count); the
+    lower half, which no peak touches, keeps its own."""
     target = lambda p: p.norm(dim=1) - 0.05  # noqa: E731
     draw = torch.Generator().manual_seed(1)
     sphere = 0.05 * torch.nn.functional.normalize(torch.randn(3000, 3, generator=draw), dim=1)
@@ -462,7 +463,8 @@ def test_the_warm_start_turns_the_surface_at_the_range_peaks_towards_their_views
             offset = float(field.sdf(disc).abs().mean())
         result[weight] = {"up": float(normal(disc)[:, 2].mean()), "offset_m": offset,
                           "radial_below": float((normal(lower) * torch.nn.functional.normalize(lower, dim=1)).sum(1).mean())}
-    assert result[0.0]["up"] < 0.98 and result[1.0]["up"] > 0.99, result
+    tilt = {weight: 1 - r["up"] for weight, r in result.items()}  # 1 - mean cos to +z (noisy peaks tilt it)
+    assert tilt[1.0] < 0.001 and tilt[1.0] < 0.1 * tilt[0.0], result
     assert max(r["offset_m"] for r in result.values()) < 0.001 and result[1.0]["radial_below"] > 0.95, result
 
 
