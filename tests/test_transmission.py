@@ -3,6 +3,7 @@ returns |T|^2 of its bare return, from farther by the slab's excess electrical p
 the slab's T at every frequency."""
 
 import dataclasses
+import importlib
 import math
 from functools import partial
 
@@ -293,3 +294,34 @@ def test_range_peaks_seen_through_a_known_sheet_stand_back_by_its_excess_path():
     assert 0.85 * delay / 2 < found["unknown"] - true_range < delay / 2
     assert abs(found["glass"] - true_range) < 1e-4, found
     assert found["metal"] is None
+
+
+def test_a_simulation_traced_view_by_view_continues_from_its_checkpoint(tmp_path, monkeypatch):
+    """Stopped after its first view, a simulation through objects rerun on its checkpoint
+    gives the data (noise included) of one never stopped, bit for bit; a checkpoint of
+    another simulation is refused in one line."""
+    from rfsdf.errors import RfsdfError
+    from rfsdf.studies.ball_fit import small_radar
+
+    ball = {"name": "ball", "material": "metal", "shape": {"type": "sphere", "radius_m": 0.02, "center_m": [0, 0, 0]}}
+    sheet = _box("sheet", "glass", [0.07, 0.07, 0.0015], [0.0, 0.0, 0.0465])
+    scene, radar = _scene(ball, sheet, lower_m=(-0.1,) * 3, upper_m=(0.1,) * 3), small_radar(rings=((3, 1.2),))
+    whole = simulate(scene, radar, transmission=True, seed=3)
+    simulator = importlib.import_module("rfsdf.radar.simulate")  # the package's name is the function's
+    checkpoint, traced = tmp_path / "partial.pt", simulator.through_objects
+
+    def first_view_only(*args, calls=[]):
+        calls.append(1)
+        if len(calls) > 1:
+            raise KeyboardInterrupt
+        return traced(*args)
+
+    monkeypatch.setattr(simulator, "through_objects", first_view_only)
+    with pytest.raises(KeyboardInterrupt):
+        simulate(scene, radar, transmission=True, seed=3, checkpoint=checkpoint)
+    monkeypatch.setattr(simulator, "through_objects", traced)
+    assert torch.load(checkpoint, weights_only=True)["views_done"] == 1
+    resumed = simulate(scene, radar, transmission=True, seed=3, checkpoint=checkpoint)
+    assert torch.equal(resumed.data, whole.data) and resumed.noise_std == whole.noise_std
+    with pytest.raises(RfsdfError, match="partial.pt: a checkpoint of another simulation"):
+        simulate(scene, radar, transmission=True, seed=3, samples_per_wavelength=2, checkpoint=checkpoint)

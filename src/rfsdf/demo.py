@@ -63,7 +63,11 @@ from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
 __all__ = ["DemoSettings", "QUICK", "SCANNED", "demo_settings", "demo_grid", "SceneAndRadar", "load_scene_and_radar",
-           "claim_folder", "require_demo_images", "MethodResult", "DemoResult", "SETTINGS_NAME", "run_demo", "metrics_rows", "metrics_table"]
+           "claim_folder", "require_demo_images", "MethodResult", "DemoResult", "SETTINGS_NAME", "SIMULATION_CHECKPOINT", "run_demo", "metrics_rows", "metrics_table"]
+
+SIMULATION_CHECKPOINT = "simulation.partial.pt"
+"""The views a demo's simulation has done, where it traces them one by one; gone once its
+measurements.h5 is written (a rerun of the same --out continues from it)."""
 
 
 @dataclass(frozen=True)
@@ -195,7 +199,7 @@ def claim_folder(out: Path, settings) -> None:
             changed = ", ".join(f"{k}: {held.get(k)!r} -> {v!r}" for k, v in wanted.items()
                                 if held.get(k) != v) if isinstance(held, dict) else "unreadable settings"
             raise RfsdfError(f"{out}: holds a demo of other settings ({changed}); choose another --out")
-    elif any((out / name).exists() for name in ("measurements.h5", "image.h5", "run")):
+    elif any((out / name).exists() for name in ("measurements.h5", "image.h5", "run", SIMULATION_CHECKPOINT)):
         raise RfsdfError(f"{out}: holds files of another run; choose another --out")
     write_json(stamp, wanted)
 
@@ -284,8 +288,9 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
                                 samples_per_wavelength=settings.samples_per_wavelength,
                                 stratified=settings.stratified_samples, surface=settings.surface,
-                                device=device, progress=progress)
+                                device=device, progress=progress, checkpoint=out / SIMULATION_CHECKPOINT)
         write_measurements(out / "measurements.h5", measurements)
+        (out / SIMULATION_CHECKPOINT).unlink(missing_ok=True)
     lap("simulate_s")
 
     grid = demo_grid(scene.lower_m, scene.upper_m, measurements.acquisition, settings.voxel_m)

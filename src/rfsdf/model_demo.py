@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Callable
 
 
-from .demo import claim_folder, load_scene_and_radar
+from .demo import SIMULATION_CHECKPOINT, claim_folder, load_scene_and_radar
 from .device import resolve_device
 from .jsonio import write_json
 from .mesh import export_mesh
@@ -117,8 +117,10 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
         measurements = read_measurements(out / "measurements.h5")
     else:
         measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                transmission=settings.transmission, device=device, progress=progress)
+                                transmission=settings.transmission, device=device, progress=progress,
+                                checkpoint=out / SIMULATION_CHECKPOINT)
         write_measurements(out / "measurements.h5", measurements)
+        (out / SIMULATION_CHECKPOINT).unlink(missing_ok=True)
     timings["simulate_s"] = round(time.perf_counter() - clock, 2)
     acq = measurements.acquisition
     threshold = range_resolution_m(acq.bandwidth_hz) / 2

@@ -11,10 +11,13 @@ coherent renderer calls the same function on samples of the neural surface.
 from __future__ import annotations
 
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from ..atomic import atomic_path
+from ..errors import RfsdfError
 from ..materials import fresnel
 from ..progress import progress_bar
 from ..scene import Scene, SurfaceSamples
@@ -131,12 +134,25 @@ def _require_resolved_roughness(scene: Scene, spacing_m: float) -> None:
                              "with more max_samples)")
 
 
+def _views_done(checkpoint: Path | None, shape: tuple, num_samples: int) -> tuple[torch.Tensor, int]:
+    """(y (F, T, R, K) with the views a checkpoint holds, how many it holds): zeros and 0
+    without one; RfsdfError for one of another simulation."""
+    if checkpoint is None or not Path(checkpoint).is_file():
+        return torch.zeros(shape, dtype=torch.complex64), 0
+    held = torch.load(checkpoint, weights_only=True)
+    if tuple(held["y"].shape) != tuple(shape) or held["surface_samples"] != num_samples:
+        raise RfsdfError(f"{checkpoint}: a checkpoint of another simulation ({held['surface_samples']} surface "
+                         f"samples, data {tuple(held['y'].shape)}; this one {num_samples}, {tuple(shape)}); "
+                         "delete it to start again")
+    return held["y"], int(held["views_done"])
+
+
 def simulate(
     scene: Scene, radar: Radar, *, seed: int = 0, spacing_m: float | None = None, max_samples: int = 150_000,
     samples_per_wavelength: float = SAMPLES_PER_WAVELENGTH,
     specular_exponent: float = SPECULAR_EXPONENT, diffuse_weight: float = DIFFUSE_WEIGHT, polarization: str = "mean",
     shadows: bool = True, stratified: bool = True, surface: str = "facets", transmission: bool = False,
-    device=None, progress: bool = False,
+    device=None, progress: bool = False, checkpoint: Path | None = None,
 ) -> Measurements:
     """Simulated measurements of ``scene`` by ``radar`` (reproducible for a given ``seed``).
 
@@ -154,7 +170,9 @@ def simulate(
     sample, :mod:`~rfsdf.radar.transmission`); metal still blocks. Noise is added
     at ``radar.snr_db`` (None: noise-free). Scattering and A c run on ``device`` (None: CPU); the surface samples are
     drawn and the noise added on the CPU, so the data do not depend on the device beyond
-    float rounding.
+    float rounding. Where views are traced one by one (scans, transmission: a room through
+    glass takes hours), ``checkpoint`` names a file that keeps the views done, written after
+    each; a rerun with the same arguments continues from it, and the same data result.
     """
     acq = radar.acquisition()
     samples, plan = surface_samples(scene, acq, spacing_m or acq.wavelength_m / samples_per_wavelength, max_samples,
@@ -190,10 +208,11 @@ def simulate(
         # A scan's frames trace one set of lines of sight, from its centre: its frames see a
         # hand-sized object within some 15 degrees of it (sar-77g), and a ray per sample and
         # frame would cost thousands of traces a sample. Through objects, each view traces its own.
-        y = torch.zeros(acq.shape, dtype=torch.complex64)
+        y, done = _views_done(checkpoint, acq.shape, len(samples.points))
         chunk = max(1, _REFLECTIVITY_BYTES // (8 * len(samples.points)))
         centres = 0.5 * sum(acq.view_centres())  # (S, 3) each view's phase centre
-        for view in progress_bar(range(acq.num_views), desc="views", enabled=progress):
+        for view in progress_bar(range(done, acq.num_views), desc="views", enabled=progress,
+                                 initial=done, total=acq.num_views):
             centre, slabs, sheets = centres[view].to(samples.points), None, None
             if transmission:  # a sheet's front face returns its back face's echo too, within a range cell
                 sight, slabs = through_objects(scene, samples.points, samples.normals, centre,
@@ -205,6 +224,9 @@ def simulate(
                          if shadows else torch.ones(len(samples.points), dtype=torch.bool))
             for part in acq.frames(view).split(chunk):
                 y[part] = measure(acq.view(part), sight, slabs, sheets, show=False)
+            if checkpoint is not None:
+                with atomic_path(checkpoint) as tmp:
+                    torch.save({"views_done": view + 1, "surface_samples": len(samples.points), "y": y}, tmp)
     y = y * po_spectrum(acq.frequencies_hz).to(y.dtype)
     noise_std = None
     if radar.snr_db is not None:
