@@ -9,8 +9,12 @@ band; outside by more: bloated faces and floaters) and by whether its nearest tr
 is seen, with each part's share of the samples and of the mean,
 the floaters alone (connected components of the predicted mesh none of whose samples
 comes within ``--floater-mm`` of a true surface), and the completeness of the seen surface by
-object (mean and median). Reads the meshes, settings and measurements a demo folder holds;
-reconstructs nothing.
+object (mean and median), and that completeness again on the surface each view's cone
+holds within tolerances narrower than the mask's 10 degrees (``--tolerances-deg``): the
+tolerance is a cross-range cell's specular beamwidth, but a flat face larger than the cell
+tilted beyond the cone returns only from its edges (its phase cancels across it), so what the
+strict cone holds is the surface whose glints are in the data. Reads the meshes, settings
+and measurements a demo folder holds; reconstructs nothing.
 
 Usage: python benchmarks/error_anatomy.py DEMO_DIR [--out benchmarks/results/error-anatomy.json]
 """
@@ -19,7 +23,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+from functools import partial
 from pathlib import Path
+from typing import Iterable
 
 import numpy as np
 import torch
@@ -40,12 +47,13 @@ def main() -> None:
     parser.add_argument("folder", type=Path)
     parser.add_argument("--band-mm", type=float, default=2.0)
     parser.add_argument("--floater-mm", type=float, default=5.0)
+    parser.add_argument("--tolerances-deg", type=float, nargs="*", default=[0.0, 2.5, 5.0])
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/error-anatomy.json"))
     args = parser.parse_args()
     settings = json.loads((args.folder / "demo-settings.json").read_text())
     scene = load_scene(settings["scene"])
     acquisition = read_measurements(args.folder / "measurements.h5").acquisition
-    truth = TrueSurface(scene, acquisition, seed=settings.get("seed", 0))
+    truth = TrueSurface(scene, acquisition, seed=settings.get("seed", 0), tolerances_deg=args.tolerances_deg)
     result = {"folder": str(args.folder), "scene": settings["scene"], "radar": settings["radar"],
               "band_mm": args.band_mm, "floater_mm": args.floater_mm,
               "seen_share_of_true_surface": float(truth.seen.mean()), "methods": {}}
@@ -56,21 +64,25 @@ def main() -> None:
                           floater_m=args.floater_mm * 1e-3, seed=settings.get("seed", 0))
             result["methods"][method] = row
             print(method, to_json({k: row[k] for k in ("observed_chamfer_mm", "accuracy_mm", "completeness_seen_mm",
-                                                       "accuracy_parts_mm")}, indent=None), flush=True)
+                                                       "accuracy_parts_mm")}, indent=None),
+                  {t: round(part["all"]["mean"], 3) for t, part in row["completeness_seen_within_deg"].items()},
+                  flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(to_json(result))
 
 
 class TrueSurface:
     """Area-uniform samples of a scene's objects (as ``evaluate_scene`` draws them), their
-    owner object and whether some view of ``acquisition`` observes them."""
+    owner object and whether some view of ``acquisition`` observes them (``seen``; and
+    ``seen_within`` {tolerance [deg]: (N,) bool} with the cone widened by each tolerance)."""
 
-    def __init__(self, scene, acquisition, *, seed: int):
+    def __init__(self, scene, acquisition, *, seed: int, tolerances_deg: Iterable[float] = ()):
         self.scene = scene
         self.points, normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
         self.mesh = scene.ground_truth_mesh()
-        self.seen = np.asarray(observed_mask(torch.as_tensor(self.points), torch.as_tensor(normals), acquisition,
-                                             scene.sdf), bool)
+        seen = partial(observed_mask, torch.as_tensor(self.points), torch.as_tensor(normals), acquisition, scene.sdf)
+        self.seen = np.asarray(seen(), bool)
+        self.seen_within = {t: np.asarray(seen(tolerance_rad=math.radians(t)), bool) for t in tolerances_deg}
 
     def signed_m(self, points: np.ndarray) -> np.ndarray:
         """(N,) the scene SDF [m] at ``points`` (N, 3): negative inside an object."""
@@ -96,11 +108,7 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
     floating = np.isin(component, [c for c in np.unique(component)
                                    if np.abs(signed[component == c]).min() > floater_m])
     seen = completeness[truth.seen]
-    objects = {}
-    for index, obj in enumerate(truth.scene.objects):
-        own = completeness[truth.seen & (truth.owner == index)]
-        objects[obj.name] = ({"mean_mm": 1e3 * float(own.mean()), "median_mm": 1e3 * float(np.median(own)),
-                              "seen_samples": len(own)} if len(own) else None)
+    objects = _by_object(completeness, truth.seen, truth)
     return {
         "observed_chamfer_mm": 0.5e3 * float(accuracy.mean() + seen.mean()),
         "accuracy_mm": _summary(accuracy),
@@ -110,7 +118,21 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
         "floaters": {"share": float(floating.mean()),
                      "of_the_accuracy_mean_mm": 1e3 * float(accuracy[floating].sum()) / len(accuracy)},
         "completeness_seen_by_object": objects,
+        "completeness_seen_within_deg": {f"{t:g}": {"share_of_true_surface": float(mask.mean()),
+                                                    "all": _summary(completeness[mask]),
+                                                    "by_object": _by_object(completeness, mask, truth)}
+                                         for t, mask in truth.seen_within.items()},
     }
+
+
+def _by_object(completeness: np.ndarray, seen: np.ndarray, truth: TrueSurface) -> dict:
+    """{object: mean and median [mm] of ``completeness`` over its ``seen`` samples, or None}."""
+    objects = {}
+    for index, obj in enumerate(truth.scene.objects):
+        own = completeness[seen & (truth.owner == index)]
+        objects[obj.name] = ({"mean_mm": 1e3 * float(own.mean()), "median_mm": 1e3 * float(np.median(own)),
+                              "seen_samples": len(own)} if len(own) else None)
+    return objects
 
 
 def _summary(distances_m: np.ndarray) -> dict:
