@@ -63,7 +63,7 @@ from .scene import Scene, load_scene
 from .viz import plot_mip, plot_sdf_slices, plot_training_curves
 
 __all__ = ["DemoSettings", "QUICK", "SCANNED", "demo_settings", "demo_grid", "SceneAndRadar", "load_scene_and_radar",
-           "claim_folder", "require_demo_images", "MethodResult", "DemoResult", "SETTINGS_NAME", "SIMULATION_CHECKPOINT", "run_demo", "metrics_rows", "metrics_table"]
+           "claim_folder", "require_demo_images", "MethodResult", "DemoResult", "SETTINGS_NAME", "SIMULATION_CHECKPOINT", "simulated_in", "run_demo", "metrics_rows", "metrics_table"]
 
 SIMULATION_CHECKPOINT = "simulation.partial.pt"
 """The views a demo's simulation has done, where it traces them one by one; gone once its
@@ -204,6 +204,16 @@ def claim_folder(out: Path, settings) -> None:
     write_json(stamp, wanted)
 
 
+def simulated_in(out: Path, simulation: Callable[..., Measurements]) -> Measurements:
+    """``simulation(checkpoint=...)``'s measurements written to ``out``/measurements.h5, the
+    views it kept in ``out``/:data:`SIMULATION_CHECKPOINT` (a rerun continues from them)
+    removed once they are."""
+    measurements = simulation(checkpoint=out / SIMULATION_CHECKPOINT)
+    write_measurements(out / "measurements.h5", measurements)
+    (out / SIMULATION_CHECKPOINT).unlink(missing_ok=True)
+    return measurements
+
+
 @dataclass(frozen=True)
 class SceneAndRadar:
     """A scene and the radar that images it, loaded and checked against each other."""
@@ -285,12 +295,11 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     elif measurements is not None:
         write_measurements(out / "measurements.h5", measurements)
     else:
-        measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                samples_per_wavelength=settings.samples_per_wavelength,
-                                stratified=settings.stratified_samples, surface=settings.surface,
-                                device=device, progress=progress, checkpoint=out / SIMULATION_CHECKPOINT)
-        write_measurements(out / "measurements.h5", measurements)
-        (out / SIMULATION_CHECKPOINT).unlink(missing_ok=True)
+        measurements = simulated_in(out, partial(simulate, scene, radar, seed=settings.seed,
+                                                 max_samples=settings.max_surface_samples,
+                                                 samples_per_wavelength=settings.samples_per_wavelength,
+                                                 stratified=settings.stratified_samples, surface=settings.surface,
+                                                 device=device, progress=progress))
     lap("simulate_s")
 
     grid = demo_grid(scene.lower_m, scene.upper_m, measurements.acquisition, settings.voxel_m)

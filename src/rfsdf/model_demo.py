@@ -23,12 +23,12 @@ from pathlib import Path
 from typing import Callable
 
 
-from .demo import SIMULATION_CHECKPOINT, claim_folder, load_scene_and_radar
+from .demo import claim_folder, load_scene_and_radar, simulated_in
 from .device import resolve_device
 from .jsonio import write_json
 from .mesh import export_mesh
 from .metrics import evaluate_scene, once_per_samples, seen_surface_errors, specular_feet
-from .radar import read_measurements, simulate, write_measurements
+from .radar import read_measurements, simulate
 from .radar.coverage import observed_mask
 from .radar.waveform import range_resolution_m
 from .recon.hybrid import RANGE_RESOLUTIONS, fit_hybrid_profiles, project_mesh, residual_amplitude_m
@@ -116,11 +116,9 @@ def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, s
     if (out / "measurements.h5").exists():  # written atomically by a run of these settings
         measurements = read_measurements(out / "measurements.h5")
     else:
-        measurements = simulate(scene, radar, seed=settings.seed, max_samples=settings.max_surface_samples,
-                                transmission=settings.transmission, device=device, progress=progress,
-                                checkpoint=out / SIMULATION_CHECKPOINT)
-        write_measurements(out / "measurements.h5", measurements)
-        (out / SIMULATION_CHECKPOINT).unlink(missing_ok=True)
+        measurements = simulated_in(out, partial(simulate, scene, radar, seed=settings.seed,
+                                                 max_samples=settings.max_surface_samples,
+                                                 transmission=settings.transmission, device=device, progress=progress))
     timings["simulate_s"] = round(time.perf_counter() - clock, 2)
     acq = measurements.acquisition
     threshold = range_resolution_m(acq.bandwidth_hz) / 2
