@@ -36,10 +36,10 @@ import torch
 from object_brightness import object_gains
 
 from rfsdf.demo import DemoSettings
+from rfsdf.field import RadarField
 from rfsdf.jsonio import to_json
 from rfsdf.materials import MATERIAL_CLASSES, class_reflectivities, reflectivity_class
 from rfsdf.radar import load_radar, read_measurements, simulate
-from rfsdf.field import RadarField
 from rfsdf.recon import read_checkpoint
 from rfsdf.scene import load_scene
 
@@ -84,10 +84,10 @@ def main() -> None:
         data = read_measurements(args.run / "measurements.h5")
     names = [obj.name for obj in scene.objects]
     truth = np.array([obj.material.name for obj in scene.objects])
-    true_gamma = class_reflectivities(tuple(truth), data.acquisition.center_frequency_hz).numpy()
+    frequency_hz = data.acquisition.center_frequency_hz
+    true_gamma = class_reflectivities(tuple(truth), frequency_hz).numpy()
     exact, bright = object_gains(scene, data, settings)
     print(f"exact surfaces: data / renderer per object {np.round(exact, 3).tolist()} ({bright} bright voxels)")
-    frequency_hz = data.acquisition.center_frequency_hz
 
     def gains_with_errors(sigma_mm: float, correlation_mm: float, seed: int) -> np.ndarray:
         """a_i on the true surfaces moved by one random field (sigma 0: resampled only)."""
