@@ -128,3 +128,22 @@ def test_the_demo_calibrates_by_the_scenes_reference_unless_told_otherwise():
     headless = ReconConfig.model_validate({"field": {"materials": []}})
     assert with_scene_reference(headless, scene, settings).calibration.reference is None
     assert with_scene_reference(config, load_scene("sphere"), settings).calibration.reference is None
+
+
+def test_a_folder_stamped_before_a_setting_existed_takes_its_default(tmp_path):
+    """A run folder whose settings stamp lacks a setting added since (a model demo's
+    ``beams``) is the same run when that setting is at its default, another run when not."""
+    import dataclasses
+
+    from rfsdf.demo import SETTINGS_NAME, claim_folder
+    from rfsdf.errors import RfsdfError
+    from rfsdf.model_demo import ModelDemoSettings
+
+    settings = ModelDemoSettings()
+    claim_folder(tmp_path, settings)
+    stamp = json.loads((tmp_path / SETTINGS_NAME).read_text())
+    del stamp["beams"]
+    (tmp_path / SETTINGS_NAME).write_text(json.dumps(stamp))
+    claim_folder(tmp_path, settings)  # the same run
+    with pytest.raises(RfsdfError, match="beams: False -> True"):
+        claim_folder(tmp_path, dataclasses.replace(settings, beams=True))

@@ -118,6 +118,7 @@ def test_the_room_demo_runs_each_model_into_one_folder_and_reports_them_side_by_
     (["--model", "primitive", "--no-materials"], "--no-materials: only with --model neural"),
     (["--seed", "3"], "--seed: only with --model primitive, hybrid or all"),
     (["--transmission"], "--transmission: only with --model primitive, hybrid or all"),
+    (["--beams"], "--beams: only with --model primitive, hybrid or all"),
 ])
 def test_options_of_one_kind_of_model_are_refused_for_the_other(tmp_path, args, message):
     result = CliRunner().invoke(main, ["demo", "--out", str(tmp_path / "o"), *args])

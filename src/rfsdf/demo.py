@@ -188,13 +188,17 @@ SETTINGS_NAME = "demo-settings.json"
 def claim_folder(out: Path, settings) -> None:
     """Make ``out`` the folder of a demo of ``settings`` (a dataclass), or refuse before
     writing anything: a folder holding a demo of other settings (or files of an unknown run)
-    would end up mixing two runs."""
+    would end up mixing two runs. A setting the folder's stamp lacks (one added since) counts
+    as its default."""
     stamp, wanted = out / SETTINGS_NAME, json.loads(to_json(dataclasses.asdict(settings)))
     if stamp.exists():
         try:
             held = json.loads(stamp.read_text())
         except (OSError, ValueError):
             held = None
+        if isinstance(held, dict):
+            held = {**{f.name: f.default for f in dataclasses.fields(settings) if f.name not in held
+                       and isinstance(f.default, (bool, int, float, str, type(None)))}, **held}
         if held != wanted:
             changed = ", ".join(f"{k}: {held.get(k)!r} -> {v!r}" for k, v in wanted.items()
                                 if held.get(k) != v) if isinstance(held, dict) else "unreadable settings"

@@ -55,7 +55,8 @@ class ModelDemoSettings:
     ``seed``, and with ``free_materials`` every material but the scene's calibration
     reference); ``transmission``: lines of sight go on through dielectrics, in the simulator
     and in the models' renderer alike (:mod:`rfsdf.radar.transmission`,
-    :mod:`rfsdf.recon.range_profile`)."""
+    :mod:`rfsdf.recon.range_profile`); ``beams``: the fits compare each view's profiles per
+    beam of its array, coherent over its channels (``ProfileSettings.beams``)."""
 
     scene: str = "l-room"
     radar: str = "room-60g"
@@ -72,6 +73,7 @@ class ModelDemoSettings:
     metric_samples: int = 50_000
     neural: NeuralProfileSettings = NeuralProfileSettings()
     transmission: bool = False
+    beams: bool = False
 
 
 QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=40_000, rays_per_side=16,
@@ -80,7 +82,8 @@ QUICK_MODELS = ModelDemoSettings(steps=8, residual_steps=4, max_surface_samples=
 
 
 def _profile_settings(settings: ModelDemoSettings) -> ProfileSettings:
-    return ProfileSettings(rays_per_side=settings.rays_per_side, transmission=settings.transmission)
+    return ProfileSettings(rays_per_side=settings.rays_per_side, transmission=settings.transmission,
+                           beams=settings.beams)
 
 
 def run_model_demo(out, settings: ModelDemoSettings, models=("primitive",), *, start: SceneModel | None = None,

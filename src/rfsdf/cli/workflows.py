@@ -55,10 +55,14 @@ from .app import (
 @click.option("--transmission", is_flag=True,
               help="With --model primitive/hybrid/all: lines of sight go on through dielectric objects (ITU-R P.2040 "
                    "slabs) in the simulator and in the models' renderer; metal still stops them.")
+@click.option("--beams", is_flag=True,
+              help="With --model primitive/hybrid/all: fit each view's range profiles per beam of its array, "
+                   "summed coherently over its channels (a wall at a beam's centre Tx x Rx times over the same "
+                   "noise), not their mean over the channels.")
 @one_line_errors
 def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_materials: bool, reference: str | None,
          relative: bool, device: str, model_kind: str, scene_model_path: Path | None, start_offset: float | None,
-         seed: int | None, free_materials: bool, max_samples: int | None, transmission: bool):
+         seed: int | None, free_materials: bool, max_samples: int | None, transmission: bool, beams: bool):
     """Simulate, image, reconstruct, mesh and evaluate a scene; all artefacts go to --out.
 
     Ends with a table of metrics for the GeRaF reconstruction and the baselines, and what
@@ -82,11 +86,12 @@ def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_mat
             raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _model_demo(out, scene_name or "objects", radar_name, quick, model_kind, scene_model_path,
                     0.15 if start_offset is None else start_offset, seed or 0, free_materials, max_samples,
-                    transmission, device)
+                    transmission, beams, device)
         return
     given = [name for name, value in (("--scene-model", scene_model_path), ("--seed", seed),
                                       ("--start-offset", start_offset), ("--free-materials", free_materials or None),
-                                      ("--max-samples", max_samples), ("--transmission", transmission or None))
+                                      ("--max-samples", max_samples), ("--transmission", transmission or None),
+                                      ("--beams", beams or None))
              if value is not None]
     if given:
         raise click.UsageError(f"{', '.join(given)}: only with --model primitive, hybrid or all")
@@ -107,7 +112,7 @@ def demo(out: Path, scene_name: str | None, radar_name: str, quick: bool, no_mat
 
 def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_kind: str,
                 scene_model_path: Path | None, start_offset: float, seed: int, free_materials: bool,
-                max_samples: int | None, transmission: bool, device: str) -> None:
+                max_samples: int | None, transmission: bool, beams: bool, device: str) -> None:
     """``demo --model primitive|hybrid|all``: the scene models side by side (rfsdf.model_demo);
     ``device`` runs the simulation."""
     import dataclasses
@@ -118,7 +123,7 @@ def _model_demo(out: Path, scene_name: str, radar_name: str, quick: bool, model_
     settings = dataclasses.replace(QUICK_MODELS if quick else ModelDemoSettings(), scene=scene_name, radar=radar_name,
                                    start_offset_m=start_offset, seed=seed, free_materials=free_materials,
                                    scene_model=None if scene_model_path is None else str(scene_model_path),
-                                   transmission=transmission)
+                                   transmission=transmission, beams=beams)
     if max_samples is not None:
         settings = dataclasses.replace(settings, max_surface_samples=max_samples)
     result = run_model_demo(out, settings, MODELS if model_kind == "all" else (model_kind,), device=device,

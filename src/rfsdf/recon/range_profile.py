@@ -70,7 +70,7 @@ from ..scene_model import SceneModel
 from .primitive import RELATIVE_GAIN, PrimitiveField, PrimitiveFit
 from .schedules import exponential_decay
 
-__all__ = ["ProfileSettings", "path_axis", "data_profiles", "model_profiles", "noise_floor", "profile_loss",
+__all__ = ["ProfileSettings", "path_axis", "view_beams", "data_profiles", "model_profiles", "noise_floor", "profile_loss",
            "fit_primitive_profiles", "fit_profiles", "image_source_reflectivities"]
 
 _HANN_FWHM = 1.44  # Hann window's main-lobe width at half power, in units of c / B (path)
@@ -103,36 +103,53 @@ def _window(count: int) -> torch.Tensor:
     return torch.hann_window(count, periodic=False, dtype=torch.float64)
 
 
-def data_profiles(measurements: Measurements, path_m: torch.Tensor) -> torch.Tensor:
-    """(V, P) power of each view's range profile at ``path_m`` (P,) [m], mean over its Tx-Rx pairs."""
+def data_profiles(measurements: Measurements, path_m: torch.Tensor, beams: torch.Tensor | None = None) -> torch.Tensor:
+    """(V, P) power of each view's range profile at ``path_m`` (P,) [m], mean over its Tx-Rx
+    pairs; with ``beams`` (V, B, T R) (:func:`view_beams`) (V, B, P), each beam's coherent
+    sum over the pairs (a return at boresight stands T R times higher over the same noise)."""
     y = measurements.data.to(torch.complex128)
     f = measurements.acquisition.frequencies_hz.double()
     window = _window(len(f))
     steer = torch.exp(1j * 2 * math.pi * f[:, None] * path_m[None, :] / SPEED_OF_LIGHT)  # (K, P)
-    profiles = (y * window).reshape(-1, len(f)) @ steer
-    return (profiles.abs() ** 2).reshape(*y.shape[:3], -1).mean((1, 2))
+    profiles = ((y * window).reshape(-1, len(f)) @ steer).reshape(y.shape[0], -1, len(path_m))  # (V, T R, P)
+    if beams is None:
+        return (profiles.abs() ** 2).mean(1)
+    return (beams.conj() @ profiles).abs() ** 2
 
 
-def _blur(profiles: torch.Tensor, sigma_m: float, step_m: float) -> torch.Tensor:
-    """profiles (V, P) convolved along P with a unit-sum Gaussian of ``sigma_m`` [m path]."""
+def _blur(profiles: torch.Tensor, sigma_m: float, step_m: float, *, fft: bool = False) -> torch.Tensor:
+    """profiles (..., P) convolved along P with a unit-sum Gaussian of ``sigma_m`` [m path],
+    zero outside the axis; with ``fft`` by FFT, the same values within 2e-15 (a beamformed
+    fit's B rows a view under a wide blur made the direct convolution 5 s of a 7 s step; the
+    channels' mean keeps the direct one, its fits bit for bit as measured)."""
     if sigma_m <= step_m / 4:
         return profiles
     half = int(math.ceil(4 * sigma_m / step_m))
     offsets = torch.arange(-half, half + 1, dtype=profiles.dtype) * step_m
     kernel = torch.exp(-0.5 * (offsets / sigma_m) ** 2)
     kernel = (kernel / kernel.sum()).to(profiles.device)
-    return torch.nn.functional.conv1d(profiles[:, None], kernel[None, None], padding=half)[:, 0]
+    if fft:
+        size = 1 << (profiles.shape[-1] + 2 * half).bit_length()  # zero-padded: the circular convolution is the linear one
+        spectrum = torch.fft.rfft(profiles, n=size) * torch.fft.rfft(kernel, n=size)
+        return torch.fft.irfft(spectrum, n=size)[..., half:half + profiles.shape[-1]]
+    rows = profiles.reshape(-1, 1, profiles.shape[-1])
+    return torch.nn.functional.conv1d(rows, kernel[None, None], padding=half).reshape(profiles.shape)
 
 
-def _beam_directions(boresight: torch.Tensor, per_side: int, half_angle_rad: float) -> tuple[torch.Tensor, torch.Tensor]:
-    """Unit directions (per_side^2, 3) on a grid of tangent-plane angles about ``boresight``
-    (3,), and each one's solid angle [sr] (the grid is uniform in tan, so dOmega ~ cos^3)."""
+def _view_frame(boresight: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(b, u, w) float64 (3,) each: the unit ``boresight`` and two unit axes across it."""
     b = torch.nn.functional.normalize(boresight.double(), dim=0)
     helper = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
     if abs(float(b @ helper)) > 0.9:
         helper = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)
     u = torch.nn.functional.normalize(torch.linalg.cross(b, helper), dim=0)
-    w = torch.linalg.cross(b, u)
+    return b, u, torch.linalg.cross(b, u)
+
+
+def _beam_directions(boresight: torch.Tensor, per_side: int, half_angle_rad: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """Unit directions (per_side^2, 3) on a grid of tangent-plane angles about ``boresight``
+    (3,), and each one's solid angle [sr] (the grid is uniform in tan, so dOmega ~ cos^3)."""
+    b, u, w = _view_frame(boresight)
     edge = math.tan(half_angle_rad)
     s = torch.linspace(-edge, edge, per_side, dtype=torch.float64)
     a, c = torch.meshgrid(s, s, indexing="ij")
@@ -140,6 +157,45 @@ def _beam_directions(boresight: torch.Tensor, per_side: int, half_angle_rad: flo
     norm = raw.norm(dim=1)
     cell = float(s[1] - s[0]) ** 2 if per_side > 1 else 1.0
     return raw / norm[:, None], cell / norm ** 3
+
+
+def _virtual_positions(acq) -> torch.Tensor:
+    """(V, T R, 3) float64 [m]: each channel's p_tx + p_rx less twice its view's array
+    centre, the data's channel order. A far return from direction u (unit, from the centre)
+    reaches channel c with the phase exp(+j k u . v_c) over the centre's (design.md's
+    exp(-j k (d_tx + d_rx)); for a wall's specular return u is towards its foot point)."""
+    tx, rx = acq.tx_m.double(), acq.rx_m.double()
+    centre = torch.cat([tx, rx], dim=1).mean(1)
+    return (tx[:, :, None] + rx[:, None]).reshape(len(tx), -1, 3) - 2 * centre[:, None]
+
+
+def view_beams(acq, half_angle_rad: float) -> torch.Tensor:
+    """(V, B, T R) complex128 unit-norm steering vectors of each view's beams at the centre
+    frequency: directions u_b = a u + c w + sqrt(1 - a^2 - c^2) b in the view's frame,
+    a and c on a grid of the virtual aperture's Rayleigh spacing lambda / extent along each
+    axis (one beam across an axis the array does not extend along), up to
+    sin(``half_angle_rad``) off boresight. The views' arrays must give one count of beams."""
+    wavenumber = 2 * math.pi * acq.center_frequency_hz / SPEED_OF_LIGHT
+    virtual = _virtual_positions(acq)
+    reach = math.sin(half_angle_rad)
+    beams = []
+    for v in range(len(virtual)):
+        b, u, w = _view_frame(acq.boresight[v])
+        grids = []
+        for axis in (u, w):
+            extent = float((virtual[v] @ axis).max() - (virtual[v] @ axis).min())
+            spacing = 2 * math.pi / (wavenumber * extent) if extent > 1e-9 else math.inf
+            half = int(reach / spacing) if math.isfinite(spacing) else 0
+            grids.append(torch.arange(-half, half + 1, dtype=torch.float64) * (spacing if half else 0.0))
+        a, c = (g.reshape(-1) for g in torch.meshgrid(*grids, indexing="ij"))
+        inside = a**2 + c**2 <= reach**2
+        a, c = a[inside], c[inside]
+        directions = a[:, None] * u + c[:, None] * w + torch.sqrt(1 - a**2 - c**2)[:, None] * b
+        beams.append(torch.exp(1j * wavenumber * (directions @ virtual[v].T)) / math.sqrt(virtual.shape[1]))
+    if len({len(beam) for beam in beams}) > 1:
+        raise ValueError(f"beams: the views' arrays give {sorted({len(beam) for beam in beams})} beams; "
+                         "a beamformed profile needs one count")
+    return torch.stack(beams)
 
 
 @dataclass(frozen=True)
@@ -237,10 +293,13 @@ def _hits(field: PrimitiveField, acq, *, rays_per_side: int, half_angle_rad: flo
 
 
 def model_profiles(field: PrimitiveField, measurements: Measurements, path_m: torch.Tensor, *, rays_per_side: int,
-                   half_angle_rad: float, sigma_m: float, transmission: bool = False) -> torch.Tensor:
+                   half_angle_rad: float, sigma_m: float, transmission: bool = False,
+                   beams: torch.Tensor | None = None) -> torch.Tensor:
     """(V, P) the model's range-profile power at ``path_m`` (module docstring), differentiable
     in the field's free parameters through the hits' tangent-plane distances; with
-    ``transmission`` rays go on through dielectrics."""
+    ``transmission`` rays go on through dielectrics; with ``beams`` (V, B, T R)
+    (:func:`view_beams`) (V, B, P), each hit's power times |a_b^H s(u)|^2, the beam's gain
+    towards its foot point (s(u) its plane wave's channel phases, :func:`_virtual_positions`)."""
     acq = measurements.acquisition
     hits = _hits(field, acq, rays_per_side=rays_per_side, half_angle_rad=half_angle_rad, t_max=float(path_m[-1]) / 2,
                  transmission=transmission)
@@ -251,9 +310,21 @@ def model_profiles(field: PrimitiveField, measurements: Measurements, path_m: to
         weight = ((hits.reflectivity * hits.pattern ** 2 / (2 * hits.t * hits.cos)) ** 2 * hits.lobe * hits.on_surface
                   * hits.power)
     keep = weight > _NEGLIGIBLE * weight.max() if len(weight) else weight > 0
-    spread = math.hypot(sigma_m, _psf_sigma_m(measurements))
-    return _splat(2 * distance[keep] + hits.delay_m[keep], weight[keep], hits.view[keep], path_m, spread,
-                  acq.tx_m.shape[0])
+    centres, weight, view = 2 * distance[keep] + hits.delay_m[keep], weight[keep], hits.view[keep]
+    views = acq.tx_m.shape[0]
+    if beams is None:
+        return _splat(centres, weight, view, path_m, math.hypot(sigma_m, _psf_sigma_m(measurements)), views)
+    with torch.no_grad():  # the foot point lies along -normal from the array: that plane wave's phases
+        wavenumber = 2 * math.pi * acq.center_frequency_hz / SPEED_OF_LIGHT
+        waves = torch.exp(-1j * wavenumber * torch.einsum("qi,qci->qc", hits.normal[keep],
+                                                          _virtual_positions(acq)[view]))
+        gain = torch.einsum("qc,qbc->qb", waves, beams[view].conj()).abs() ** 2  # (Q, B)
+        beamed = weight.detach()[:, None] * gain
+        hit, beam = (beamed > _NEGLIGIBLE * beamed.max()).nonzero(as_tuple=True)  # a beam's far sidelobes dropped
+    count = beams.shape[1]  # B times the rows: splatted at the point spread, then blurred
+    profiles = _splat(centres[hit], weight[hit] * gain[hit, beam], view[hit] * count + beam, path_m,
+                      _psf_sigma_m(measurements), views * count)
+    return _blur(profiles.reshape(views, count, -1), sigma_m, float(path_m[1] - path_m[0]), fft=True)
 
 
 def image_source_reflectivities(measurements: Measurements, field: PrimitiveField, *,
@@ -338,23 +409,26 @@ def _amplitudes(profiles: torch.Tensor) -> torch.Tensor:
 
 
 def noise_floor(measurements: Measurements, profiles: torch.Tensor) -> torch.Tensor:
-    """(V, 1) the noise power per bin of the data's (V, P) range ``profiles``: sigma^2 sum w_k^2
+    """(V, 1) the noise power per bin of the data's (V, P) or (V, B, P) range ``profiles`` (a
+    unit-norm beam's as a channel's): sigma^2 sum w_k^2
     where the data's noise is known (a simulation's), else each view's median bin (most of a
     profile's path is empty: on ``box_knife`` at 20 dB the median is 0.95-1.01 of the known floor)."""
     if measurements.noise_std is None or not math.isfinite(measurements.noise_std):
-        return profiles.median(dim=1, keepdim=True).values
+        return profiles.flatten(1).median(dim=1, keepdim=True).values
     window = _window(len(measurements.acquisition.frequencies_hz))
     return torch.full((len(profiles), 1), measurements.noise_std ** 2 * float((window ** 2).sum()), dtype=profiles.dtype)
 
 
 def profile_loss(predicted: torch.Tensor, target: torch.Tensor, floor: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over views of the squared distance between the (V, P) power profiles'
-    amplitudes, each view normalised (the gain is unknown). With the data's noise ``floor``
+    amplitudes, each view normalised (the gain is unknown; a view's (B, P) beams as one
+    profile). With the data's noise ``floor``
     (V, 1) the model's profile is g_v P_v + floor, g_v >= 0 by least squares on power (held
     for the gradient): where a view's walls stand a few dB over its noise (behind
     ``box_knife``'s glass at 20 dB), the noise fills most of the data's normalised profile and,
     left out of the model, flattened the loss (its minimum 6 and 63 cm off those walls, with
     the floor 1 cm)."""
+    predicted, target = predicted.flatten(1), target.flatten(1)
     if floor is not None:
         with torch.no_grad():
             gain = ((predicted * (target - floor)).sum(1, keepdim=True).clamp(min=0)
@@ -368,7 +442,9 @@ class ProfileSettings:
     """How the profile fit samples: ``rays_per_side`` squared rays a view over a square of
     tangent-plane angles up to ``half_angle_deg`` off boresight, profiles ``step_m`` apart in
     path from 2 ``near_m``; the blur shrinks from ``blur_start_m`` [m path] to 0;
-    ``transmission``: rays go on through dielectrics (module docstring)."""
+    ``transmission``: rays go on through dielectrics (module docstring); ``beams``: each
+    view's profiles per beam of its array (:func:`view_beams`, up to ``half_angle_deg``),
+    coherent over its channels, instead of their mean."""
 
     rays_per_side: int = 48
     half_angle_deg: float = 70.0
@@ -376,6 +452,7 @@ class ProfileSettings:
     near_m: float = 0.5
     blur_start_m: float = 0.4
     transmission: bool = False
+    beams: bool = False
 
 
 def fit_primitive_profiles(measurements: Measurements, model: SceneModel, *, steps: int = 150, lr: float = 0.01,
@@ -406,7 +483,8 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
     decaying to a tenth over ``steps``, the blur shrinking from ``settings.blur_start_m`` to 0
     (``blur``) or none; ``prior()`` is added to each step's loss. Returns the data loss per step."""
     path = path_axis(measurements, settings.step_m, settings.near_m)
-    data = data_profiles(measurements, path)
+    beams = view_beams(measurements.acquisition, math.radians(settings.half_angle_deg)) if settings.beams else None
+    data = data_profiles(measurements, path, beams)
     floor = noise_floor(measurements, data)  # the blur's unit-sum kernel keeps it
     optimizer = torch.optim.Adam(groups)
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: exponential_decay(step, steps - 1, 1.0, 0.1))
@@ -415,8 +493,8 @@ def fit_profiles(measurements: Measurements, field: PrimitiveField, groups: list
         width = settings.blur_start_m * (1 - step / max(steps - 1, 1)) if blur else 0.0
         predicted = model_profiles(field, measurements, path, rays_per_side=settings.rays_per_side,
                                    half_angle_rad=math.radians(settings.half_angle_deg), sigma_m=width,
-                                   transmission=settings.transmission)
-        loss = profile_loss(predicted, _blur(data, width, settings.step_m), floor)
+                                   transmission=settings.transmission, beams=beams)
+        loss = profile_loss(predicted, _blur(data, width, settings.step_m, fft=beams is not None), floor)
         optimizer.zero_grad(set_to_none=True)
         (loss if prior is None else loss + prior()).backward()
         optimizer.step()
