@@ -436,3 +436,5 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     assert "--scene-model and --free-materials: only with --model primitive or hybrid, or --fit-to profiles" in line
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--fit-to", "profiles"], tmp_path)
     assert "--model neural --fit-to profiles needs --scene-model, or --scene" in line, line
+    line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--beams"], tmp_path)
+    assert "--beams: only with --fit-to profiles" in line, line

@@ -286,26 +286,27 @@ def test_specular_feet_through_glass_reach_the_wall_behind_it():
     assert ((through[:, 0] - 1.19).abs() < 1e-3).sum() == 1 and len(through) == len(opaque) + 1
 
 
-def _reconstruct(room_data, tmp_path, model_kind: str, steps: int, south, east_start: float) -> dict:
-    """`rfsdf reconstruct --model KIND --fit-to profiles` of the two walls, the east wall's
-    x started at ``east_start``: each free parameter's fitted value by name."""
+def _reconstruct(room_data, tmp_path, model_kind: str, steps: int, south, east_start: float, *more: str) -> dict:
+    """`rfsdf reconstruct --model KIND --fit-to profiles [MORE]` of the two walls, the east
+    wall's x started at ``east_start``: each free parameter's fitted value by name."""
     write_measurements(tmp_path / "room.h5", room_data[1])
     model = tmp_path / "model.toml"
     model.write_text(tomli_w.dumps(_room({"start": [east_start, 0.0, 1.5], "bounds_m": [[1.0, 0, 1.5], [1.4, 0, 1.5]]},
                                          south)))
     result = CliRunner().invoke(main, ["reconstruct", str(tmp_path / "room.h5"), "--out", str(tmp_path / "run"),
                                        "--model", model_kind, "--fit-to", "profiles", "--scene-model", str(model),
-                                       "--steps", str(steps)])
+                                       "--steps", str(steps), *more])
     assert result.exit_code == 0, result.output
     return {row["name"]: row["fitted"] for row in json.loads((tmp_path / "run" / "primitive.json").read_text())["free"]}
 
 
-def test_reconstruct_fits_two_room_walls_to_their_range_profiles(room_data, tmp_path):
-    """`rfsdf reconstruct --model primitive --fit-to profiles`: the walls started 12 and
-    9 cm off (six range resolutions) come back within 1 cm (measured: 0.2 and 0.7 mm), the
+@pytest.mark.parametrize("more", [(), ("--beams",)])
+def test_reconstruct_fits_two_room_walls_to_their_range_profiles(room_data, tmp_path, more):
+    """`rfsdf reconstruct --model primitive --fit-to profiles [--beams]`: the walls started 12
+    and 9 cm off (six range resolutions) come back within 1 cm (measured: 0.2 and 0.7 mm), the
     run writes primitive.json, fitted-scene.toml and mesh.ply."""
     fitted = _reconstruct(room_data, tmp_path, "primitive", 40,
-                          {"start": [0.0, -0.81, 1.5], "bounds_m": [[0, -1.1, 1.5], [0, -0.7, 1.5]]}, east_start=1.32)
+                          {"start": [0.0, -0.81, 1.5], "bounds_m": [[0, -1.1, 1.5], [0, -0.7, 1.5]]}, 1.32, *more)
     assert fitted["east.center_m"][0] == pytest.approx(1.2, abs=0.01), fitted
     assert fitted["south.center_m"][1] == pytest.approx(-0.9, abs=0.01), fitted
     assert (tmp_path / "run" / "fitted-scene.toml").is_file() and (tmp_path / "run" / "mesh.ply").is_file()
