@@ -111,10 +111,10 @@ def data_profiles(measurements: Measurements, path_m: torch.Tensor, beams: torch
     f = measurements.acquisition.frequencies_hz.double()
     window = _window(len(f))
     steer = torch.exp(1j * 2 * math.pi * f[:, None] * path_m[None, :] / SPEED_OF_LIGHT)  # (K, P)
-    profiles = ((y * window).reshape(-1, len(f)) @ steer).reshape(y.shape[0], -1, len(path_m))  # (V, T R, P)
-    if beams is None:
-        return (profiles.abs() ** 2).mean(1)
-    return (beams.conj() @ profiles).abs() ** 2
+    profiles = (y * window).reshape(-1, len(f)) @ steer  # (V T R, P)
+    if beams is None:  # reduced over (T, R) as ever: the fits' rounding, and so their chaotic paths, as measured
+        return (profiles.abs() ** 2).reshape(*y.shape[:3], -1).mean((1, 2))
+    return (beams.conj() @ profiles.reshape(y.shape[0], -1, len(path_m))).abs() ** 2
 
 
 def _blur(profiles: torch.Tensor, sigma_m: float, step_m: float, *, fft: bool = False) -> torch.Tensor:
