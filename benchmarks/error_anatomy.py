@@ -9,7 +9,8 @@ band; outside by more: bloated faces and floaters) and by whether its nearest tr
 is seen, with each part's share of the samples and of the mean,
 the floaters alone (connected components of the predicted mesh none of whose samples
 comes within ``--floater-mm`` of a true surface), and the completeness of the seen surface by
-object (mean and median), and that completeness again on the surface each view's cone
+object (mean and median), and that completeness, and the tilt of the nearest predicted
+face's normal against the true one, again on the surface each view's cone
 holds within tolerances narrower than the mask's 10 degrees (``--tolerances-deg``): the
 tolerance is a cross-range cell's specular beamwidth, but a flat face larger than the cell
 tilted beyond the cone returns only from its edges (its phase cancels across it), so what the
@@ -66,7 +67,7 @@ def main() -> None:
             print(method, to_json({k: row[k] for k in ("observed_chamfer_mm", "accuracy_mm", "completeness_seen_mm",
                                                        "accuracy_parts_mm")}, indent=None),
                   {t: round(part["all"]["mean"], 3) for t, part in row["completeness_seen_within_deg"].items()},
-                  flush=True)
+                  {t: round(tilt["median"], 1) for t, tilt in row["tilt_seen_within_deg"].items()}, flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(to_json(result))
 
@@ -78,9 +79,10 @@ class TrueSurface:
 
     def __init__(self, scene, acquisition, *, seed: int, tolerances_deg: Iterable[float] = ()):
         self.scene = scene
-        self.points, normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
+        self.points, self.normals, self.owner = true_surface_samples(scene, SAMPLES, seed)
         self.mesh = scene.ground_truth_mesh()
-        seen = partial(observed_mask, torch.as_tensor(self.points), torch.as_tensor(normals), acquisition, scene.sdf)
+        seen = partial(observed_mask, torch.as_tensor(self.points), torch.as_tensor(self.normals), acquisition,
+                       scene.sdf)
         self.seen = np.asarray(seen(), bool)
         self.seen_within = {t: np.asarray(seen(tolerance_rad=math.radians(t)), bool) for t in tolerances_deg}
 
@@ -94,7 +96,9 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
     predicted, faces = trimesh.sample.sample_surface(mesh, SAMPLES, seed=seed)
     predicted = np.asarray(predicted)
     accuracy = to_surface(predicted, truth.mesh)[0]
-    completeness = to_surface(truth.points, mesh)[0]
+    completeness, nearest_face = to_surface(truth.points, mesh)
+    cosine = np.clip((mesh.face_normals[nearest_face] * truth.normals).sum(1), -1.0, 1.0)
+    tilt_deg = np.degrees(np.arccos(cosine))  # the nearest predicted face's normal against the true one
     nearest_true = nearest(truth.points, predicted)[1]
     signed = truth.signed_m(predicted)
     parts = {"inside the true solids": signed < -band_m, "within the band": np.abs(signed) <= band_m,
@@ -122,6 +126,8 @@ def anatomy(mesh: trimesh.Trimesh, truth: TrueSurface, *, band_m: float, floater
                                                     "all": _summary(completeness[mask]),
                                                     "by_object": _by_object(completeness, mask, truth)}
                                          for t, mask in truth.seen_within.items()},
+        "tilt_seen_within_deg": {f"{t:g}": _tilt(tilt_deg[mask]) for t, mask in
+                                 {**truth.seen_within, 10: truth.seen}.items()},
     }
 
 
@@ -133,6 +139,14 @@ def _by_object(completeness: np.ndarray, seen: np.ndarray, truth: TrueSurface) -
         objects[obj.name] = ({"mean_mm": 1e3 * float(own.mean()), "median_mm": 1e3 * float(np.median(own)),
                               "seen_samples": len(own)} if len(own) else None)
     return objects
+
+
+def _tilt(degrees: np.ndarray) -> dict:
+    """Median and 90th percentile [deg] of the tilts, and the share within a 4 cm face's
+    specular lobe (lambda / L, 2.7 degrees, rounded up to 4: beyond it a flat face's glint
+    leaves the views that see it)."""
+    median, p90 = np.percentile(degrees, [50, 90])
+    return {"median": float(median), "p90": float(p90), "within_4": float((degrees < 4).mean())}
 
 
 def _summary(distances_m: np.ndarray) -> dict:
