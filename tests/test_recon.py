@@ -1082,3 +1082,19 @@ def test_the_fit_moves_its_predicted_range_peaks_onto_the_datas(sphere_data, tmp
         trainer.fit()
         radius[weight] = _mean_radius(trainer.field, trainer.renderer)
     assert abs(radius[10.0] - RADIUS) < abs(radius[0.0] - RADIUS) - 0.0005, radius
+
+
+def test_the_bending_energy_is_a_term_of_the_fit_only_when_asked(sphere_data, tmp_path):
+    """``[loss] bending_weight``: a positive term of its weight while the geometry moves, no
+    term (and no draw from the generator) at 0, so the default fit is unchanged by it."""
+    _, data = sphere_data
+    terms = {}
+    for weight in (0.0, 1.0):
+        settings = _config(steps=1, geometry_delay=0.0).model_dump()
+        settings["loss"].update(bending_weight=weight)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{weight}")
+        trainer.refresh_surface()
+        terms[weight] = trainer.loss_terms()
+    assert "bending" not in terms[0.0]
+    assert 0 < float(terms[1.0]["bending"].detach()) < 4  # |n - n'|^2 of unit normals is at most 4
+    assert float(terms[1.0]["loss"].detach()) > float(terms[0.0]["loss"].detach())

@@ -103,6 +103,10 @@ class InitConfig(StrictModel):
     # 0.3 the demo's fit ends 0.1-0.3 mm nearer on the seen surface, but its glints render too
     # bright for the materials (docs/results/demo-quality.md, "Normals at the range peaks")
     peak_normal_weight: NonNegativeFloat = 0.0
+    # the warm start's bending energy (LossConfig.bending_weight's term, at the near points,
+    # offsets of LossConfig.bending_step_m); its misfit is in metres, so a few thousandths
+    # weigh what 1 does in the fit (1 flattened the demo's objects: 10 mm observed); 0: off
+    bending_weight: NonNegativeFloat = 0.0
     # a glint's centre: a range peak that is the strongest of its view's within this [m]
     # (RangePeaks.apexes); the peaks beside it stand on its tangent plane, and a normal turned
     # there too flattens a curved glint (a metal ball's read 2.4x too bright); 0: every peak
@@ -210,6 +214,13 @@ class LossConfig(StrictModel):
     peak_match_weight: NonNegativeFloat = 0.0
     peak_match_lines: PositiveInt = 512
     peak_match_span_m: PositiveFloat = 0.006
+    # bending energy while the geometry moves: this times the mean |n(p + o) - n(p)|^2 of the
+    # unit normals at ``bending_points`` surface samples p and a random offset o of
+    # ``bending_step_m`` (recon/losses.py, normal_variation): smooths the ripples a surface held
+    # through noisy range peaks takes; 0: off
+    bending_weight: NonNegativeFloat = 0.0
+    bending_step_m: PositiveFloat = 0.003
+    bending_points: PositiveInt = 2048
 
     @field_validator("data")
     @classmethod

@@ -26,7 +26,7 @@ from ..registry import Registry
 
 __all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "complex_loss", "split_spectrum_loss", "bands_of",
            "uses_phase", "peak_offset", "peak_match_loss", "material_entropy",
-           "material_cross_entropy", "eikonal_loss", "eikonal_penalty"]
+           "material_cross_entropy", "eikonal_loss", "eikonal_penalty", "normal_variation"]
 
 DATA_LOSSES: Registry = Registry("data loss")
 
@@ -188,3 +188,16 @@ def eikonal_loss(sdf, points: torch.Tensor) -> torch.Tensor:
 def eikonal_penalty(grad: torch.Tensor) -> torch.Tensor:
     """mean((|grad| - 1)^2) of gradients (N, 3) already taken (for a caller that uses them twice)."""
     return ((grad.norm(dim=1) - 1.0) ** 2).mean()
+
+
+def normal_variation(sdf, points: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
+    """mean |n(p + o) - n(p)|^2 of the unit normals n = grad f / |grad f| at ``points`` p (N, 3)
+    [m] and at them moved by ``offsets`` o (N, 3) [m], differentiable: 0 where the level sets
+    are planes over |o|, about (|o| kappa)^2 where they bend by kappa along o. Squared, so a
+    ripple of curvature kappa_r costs (kappa_r / kappa)^2 times what a smooth curve of kappa
+    does (a sphere's 1 / R): a bending energy, the prior that fits a surface through noisy
+    points by smoothing rather than interpolating them."""
+    normals = torch.nn.functional.normalize(gradient(sdf, torch.cat([points, points + offsets]), create_graph=True),
+                                            dim=1)
+    here, there = normals.chunk(2)
+    return ((there - here) ** 2).sum(1).mean()

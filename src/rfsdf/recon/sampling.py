@@ -66,3 +66,13 @@ def eikonal_points(lower_m, upper_m, near_points: torch.Tensor, batch: int, near
     pick = torch.randint(len(near_points), (n_near,), generator=generator) if n_near else torch.zeros(0, dtype=torch.long)
     near = near_points[pick] + jitter_m * torch.randn(n_near, 3, generator=generator)
     return torch.cat([uniform, near.clamp(lower, upper)])
+
+
+def bending_pairs(near_points: torch.Tensor, count: int, step_m: float,
+                  generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """``count`` random ``near_points`` (M, 3) [m] (surface samples) and an offset of ``step_m``
+    [m] from each in a uniformly random direction: (count, 3) points and (count, 3) offsets on
+    the CPU, where :func:`~rfsdf.recon.losses.normal_variation` compares the normals."""
+    pick = torch.randint(len(near_points), (count,), generator=generator)
+    offsets = torch.nn.functional.normalize(torch.randn(count, 3, generator=generator), dim=1) * step_m
+    return near_points.detach().cpu()[pick], offsets

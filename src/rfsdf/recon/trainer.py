@@ -37,10 +37,10 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, peak_match_loss,
-                     uses_phase)
+from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
+                     peak_match_loss, uses_phase)
 from .render import RENDERERS
-from .sampling import data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
+from .sampling import bending_pairs, data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
 from .warm_start import detection_threshold, excluded_voxels, known_exclusion, warm_start
 
@@ -277,7 +277,8 @@ class Trainer:
                    near_share=ic.near_share, exclude=exclude, normals=normals, normal_weight=ic.normal_weight,
                    peaks=peaks if ic.peak_weight > 0 else None, peak_weight=ic.peak_weight,
                    peak_normal_weight=ic.peak_normal_weight, peak_apex_m=ic.peak_apex_m,
-                   eikonal_weight=ic.eikonal_weight,
+                   eikonal_weight=ic.eikonal_weight, bending_weight=ic.bending_weight,
+                   bending_step_m=self.config.loss.bending_step_m,
                    generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
@@ -357,6 +358,12 @@ class Trainer:
             held = (self.field.sdf(points).abs() * amplitude).sum() / amplitude.sum()
             terms["peaks"] = cfg.loss.peak_weight * held
             terms["loss"] = terms["loss"] + terms["peaks"]
+        if not frozen and cfg.loss.bending_weight > 0:
+            points, offsets = bending_pairs(self.renderer.candidates.anchors, cfg.loss.bending_points,
+                                            cfg.loss.bending_step_m, self.generator)
+            terms["bending"] = cfg.loss.bending_weight * normal_variation(self.field.sdf, points.to(self.device),
+                                                                          offsets.to(self.device))
+            terms["loss"] = terms["loss"] + terms["bending"]
         if chosen is not None and any(i is not None for i in chosen):
             _, observed_lines, offsets = self.peak_lines()
             index = torch.cat([i for i in chosen if i is not None])

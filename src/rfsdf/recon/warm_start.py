@@ -34,7 +34,7 @@ from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
 from ..radar.range_peaks import RangePeaks
 from ..scene import Scene
-from .losses import eikonal_penalty
+from .losses import eikonal_penalty, normal_variation
 
 __all__ = ["detection_threshold", "excluded_voxels", "known_exclusion", "mask_signed_distance", "detection_target",
            "local_peak_amplitude", "fit_to_image", "warm_start"]
@@ -119,7 +119,8 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                  target_normal: Callable | None = None, normal_weight: float = 0.0,
                  surface_m: torch.Tensor | None = None, surface_weights: torch.Tensor | None = None,
                  surface_weight: float = 0.0, surface_normals: torch.Tensor | None = None,
-                 surface_normal_weight: float = 0.0, progress: bool = False) -> float:
+                 surface_normal_weight: float = 0.0, bending_weight: float = 0.0, bending_step_m: float = 0.003,
+                 progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
     Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
@@ -135,7 +136,9 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     ``surface_weights`` (M,), the loss adds ``surface_weight`` * |f| at a quarter batch of them
     drawn in proportion to their weights, and with their ``surface_normals`` (M, 3), unit or
     zero where a point's orientation is not known, ``surface_normal_weight`` * |n| (1 - cos(grad
-    f, n)) at the same points: Hermite data. The field's coarse displacement, where it has one,
+    f, n)) at the same points: Hermite data. ``bending_weight``: the bending energy
+    (:func:`~rfsdf.recon.losses.normal_variation`) at the near points, each against a point
+    ``bending_step_m`` [m] away in a random direction. The field's coarse displacement, where it has one,
     stays as it is (zero): it is what the fit moves afterwards. Returns the last clipped L1
     residual of f [m].
     """
@@ -172,6 +175,10 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                 (grad_on,) = torch.autograd.grad(f_on.sum(), on, create_graph=True)
                 normals = surface_normals[pick].to(device)
                 loss = loss + surface_normal_weight * _misalignment(grad_on, normals).mean()
+        if bending_weight > 0 and near_count:
+            offsets = torch.nn.functional.normalize(torch.randn(near_count, 3, generator=generator), dim=1)
+            loss = loss + bending_weight * normal_variation(field.sdf, points[:near_count],
+                                                            bending_step_m * offsets.to(device))
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
@@ -218,7 +225,8 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                closing_m: float, steps: int, lr: float, batch: int, eikonal_weight: float, generator: torch.Generator,
                near_share: float = 0.0, exclude: np.ndarray | None = None, normals: np.ndarray | None = None,
                normal_weight: float = 0.0, peaks: RangePeaks | None = None, peak_weight: float = 0.0,
-               peak_normal_weight: float = 0.0, peak_apex_m: float = 0.0, progress: bool = False) -> float:
+               peak_normal_weight: float = 0.0, peak_apex_m: float = 0.0, bending_weight: float = 0.0,
+               bending_step_m: float = 0.003, progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
     signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
     amplitude (both interpolated between voxel centres), and with ``normals`` ((3, *grid.shape)
@@ -256,5 +264,6 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                         eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                         near_jitter_m=voxel, target_normal=target_normal, normal_weight=normal_weight,
                         surface_m=surface, surface_weights=weights, surface_weight=peak_weight,
-                        surface_normals=facing, surface_normal_weight=peak_normal_weight, progress=progress)
+                        surface_normals=facing, surface_normal_weight=peak_normal_weight,
+                        bending_weight=bending_weight, bending_step_m=bending_step_m, progress=progress)
 
