@@ -438,3 +438,5 @@ def test_a_scene_model_is_checked_before_any_work(tmp_path, tiny_files):
     assert "--model neural --fit-to profiles needs --scene-model, or --scene" in line, line
     line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--beams"], tmp_path)
     assert "--beams: only with --fit-to profiles" in line, line
+    line = _refused(["reconstruct", tmp_path / "data.h5", "--out", tmp_path / "run", "--transmission"], tmp_path)
+    assert "--transmission: only with --fit-to profiles" in line, line

@@ -69,13 +69,16 @@ from .app import (
 @click.option("--beams", is_flag=True,
               help="With --fit-to profiles: compare each view's range profiles per beam of its array, summed "
                    "coherently over its channels, not their mean (walls a few dB over the noise).")
+@click.option("--transmission", is_flag=True,
+              help="With --fit-to profiles: the model's rays go on through dielectric objects (ITU-R P.2040 slabs), "
+                   "so walls behind glass or plasterboard vote; metal still stops them.")
 @device_option(None, "auto, cpu or cuda[:N] for the fit and its images (default: the config's train.device, auto).")
 @one_line_errors
 def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str | None, voxel_m: float | None,
                     config_path: Path | None, resume: bool, reference: str | None, scene_name: str | None,
                     model_kind: str, scene_model_path: Path | None, steps: int, start_offset: float,
                     free_materials: bool, fit_to: str, device: str | None, gain_path: Path | None,
-                    through_name: str | None, background_path: Path | None, beams: bool):
+                    through_name: str | None, background_path: Path | None, beams: bool, transmission: bool):
     """Fit a neural SDF to radar data (GeRaF): checkpoints, log.csv, config.toml, mesh.ply;
     or (--model primitive) a scene model's free parameters: primitive.json,
     fitted-scene.toml, mesh.ply; or (--model neural --fit-to profiles) a room's neural
@@ -86,8 +89,10 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
     --scene that places it; its result goes to calibration.json. Objects in a known box:
     --background (the empty box's measurements) and --through (the box's scene)."""
     seen_through = (("--through", through_name), ("--background", background_path))
-    if beams and fit_to != "profiles":
-        raise click.UsageError("--beams: only with --fit-to profiles")
+    for flag, given in (("--beams", beams), ("--transmission", transmission)):
+        if given and fit_to != "profiles":
+            raise click.UsageError(f"{flag}: only with --fit-to profiles")
+    profile = {"beams": beams, "transmission": transmission}  # rfsdf.recon.range_profile.ProfileSettings
     if model_kind != "neural":
         _refuse_options(f"--model {model_kind}", ("--image", image_path), ("--config", config_path),
                         ("--resume", resume), ("--reference", reference), ("--gain", gain_path), *seen_through)
@@ -99,7 +104,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
             raise click.UsageError("--free-materials: only without --scene-model (a model file marks its own)")
         _reconstruct_primitive(data, out, bounds, voxel_m, scene_model_path, scene_name, steps, start_offset, fit_to,
                                device_named(device or "auto"), hybrid=model_kind == "hybrid", free_materials=free_materials,
-                               beams=beams)
+                               profile=profile)
         return
     if fit_to == "profiles":
         _refuse_options("--model neural --fit-to profiles", ("--image", image_path), ("--config", config_path),
@@ -108,7 +113,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         if scene_model_path is None and scene_name is None:
             raise click.UsageError("--model neural --fit-to profiles needs --scene-model, or --scene to start from "
                                    "its truth")
-        _reconstruct_neural_profiles(data, out, bounds, scene_model_path, scene_name, steps, start_offset, beams)
+        _reconstruct_neural_profiles(data, out, bounds, scene_model_path, scene_name, steps, start_offset, profile)
         return
     if scene_model_path is not None or free_materials:
         raise click.UsageError("--scene-model and --free-materials: only with --model primitive or hybrid, or "
@@ -186,12 +191,13 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
 
 def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: float | None, model_path: Path | None,
                            scene_name: str | None, steps: int, start_offset: float, fit_to: str, device, *,
-                           hybrid: bool = False, free_materials: bool = False, beams: bool = False) -> None:
+                           hybrid: bool = False, free_materials: bool = False, profile: dict) -> None:
     """``reconstruct --model primitive|hybrid``: fit the model (``model_path``, else the scene
     ``scene_name`` with every length, and with ``free_materials`` every material, free,
     ``start_offset`` off) to the images or the range
-    profiles (``fit_to``, per beam with ``beams``; the hybrid: profiles, then its residual, rfsdf.recon.hybrid), write
-    its parameters, the fitted scene file and its mesh into ``out``."""
+    profiles (``fit_to``, with the ``profile`` settings: ProfileSettings' ``beams`` and
+    ``transmission``; the hybrid: profiles, then its residual, rfsdf.recon.hybrid), write its
+    parameters, the fitted scene file and its mesh into ``out``."""
     from ..geometry import Grid
     from ..jsonio import write_json
     from ..mesh import export_mesh
@@ -214,9 +220,9 @@ def _reconstruct_primitive(data: Path, out: Path, bounds: str | None, voxel_m: f
         amplitude = residual_amplitude_m(measurements.acquisition.bandwidth_hz)
         fit = fit_hybrid_profiles(measurements, model, amplitude_m=amplitude, lower_m=model_lower,
                                   upper_m=model_upper, steps=steps, residual_steps=steps,
-                                  settings=ProfileSettings(beams=beams), progress=True)
+                                  settings=ProfileSettings(**profile), progress=True)
     elif fit_to == "profiles":
-        fit = fit_primitive_profiles(measurements, model, steps=steps, settings=ProfileSettings(beams=beams),
+        fit = fit_primitive_profiles(measurements, model, steps=steps, settings=ProfileSettings(**profile),
                                      progress=True)
     else:
         grid = Grid.from_voxel(lower, upper, voxel_size(voxel_m, lower, upper, voxels_per_edge=50))
@@ -261,11 +267,11 @@ def _start_model(data: Path, measurements, bounds: str | None, model_path: Path 
 
 
 def _reconstruct_neural_profiles(data: Path, out: Path, bounds: str | None, model_path: Path | None,
-                                 scene_name: str | None, steps: int, start_offset: float, beams: bool) -> None:
+                                 scene_name: str | None, steps: int, start_offset: float, profile: dict) -> None:
     """``reconstruct --model neural --fit-to profiles``: the room-scale neural model
     (rfsdf.recon.neural_profiles) distilled from the start model (``model_path``, or the
-    scene ``scene_name`` ``start_offset`` off), fitted to the range profiles (per beam with
-    ``beams``) for ``steps``, meshed near its zero set at one range resolution:
+    scene ``scene_name`` ``start_offset`` off), fitted to the range profiles (with the
+    ``profile`` settings, as above) for ``steps``, meshed near its zero set at one range resolution:
     ``out``/neural.json and mesh.ply."""
     import dataclasses
 
@@ -279,7 +285,7 @@ def _reconstruct_neural_profiles(data: Path, out: Path, bounds: str | None, mode
     measurements = read_measurements(data)
     _, model, _ = _start_model(data, measurements, bounds, model_path, scene_name, start_offset)
     settings = dataclasses.replace(NeuralProfileSettings(), steps=steps)
-    fitted = fit_neural_model(measurements, model, settings=settings, profile=ProfileSettings(beams=beams),
+    fitted = fit_neural_model(measurements, model, settings=settings, profile=ProfileSettings(**profile),
                               progress=True)
     out.mkdir(parents=True, exist_ok=True)
     start = {"scene_model": str(model_path)} if model_path is not None else {"scene": scene_name,
