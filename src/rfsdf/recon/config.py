@@ -216,8 +216,9 @@ class LossConfig(StrictModel):
     peak_match_span_m: PositiveFloat = 0.006
     # bending energy while the geometry moves: this times the mean |n(p + o) - n(p)|^2 of the
     # unit normals at ``bending_points`` surface samples p and a random offset o of
-    # ``bending_step_m`` (recon/losses.py, normal_variation): smooths the ripples a surface held
-    # through noisy range peaks takes; 0: off
+    # ``bending_step_m`` (recon/losses.py, normal_variation): the thin-plate prior against
+    # ripples of the zero set; at 1 the demo's fit ends as without it (docs/results/
+    # demo-quality.md, "Tilted surfaces"); 0: off
     bending_weight: NonNegativeFloat = 0.0
     bending_step_m: PositiveFloat = 0.003
     bending_points: PositiveInt = 2048

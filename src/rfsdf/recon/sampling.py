@@ -68,11 +68,15 @@ def eikonal_points(lower_m, upper_m, near_points: torch.Tensor, batch: int, near
     return torch.cat([uniform, near.clamp(lower, upper)])
 
 
+def random_offsets(count: int, step_m: float, generator: torch.Generator) -> torch.Tensor:
+    """(count, 3) [m] offsets of length ``step_m`` in uniformly random directions, on the CPU:
+    where :func:`~rfsdf.recon.losses.normal_variation` compares each point's normal."""
+    return torch.nn.functional.normalize(torch.randn(count, 3, generator=generator), dim=1) * step_m
+
+
 def bending_pairs(near_points: torch.Tensor, count: int, step_m: float,
                   generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-    """``count`` random ``near_points`` (M, 3) [m] (surface samples) and an offset of ``step_m``
-    [m] from each in a uniformly random direction: (count, 3) points and (count, 3) offsets on
-    the CPU, where :func:`~rfsdf.recon.losses.normal_variation` compares the normals."""
+    """``count`` random ``near_points`` (M, 3) [m] (surface samples) and a :func:`random_offsets`
+    from each: (count, 3) points and (count, 3) offsets on the CPU."""
     pick = torch.randint(len(near_points), (count,), generator=generator)
-    offsets = torch.nn.functional.normalize(torch.randn(count, 3, generator=generator), dim=1) * step_m
-    return near_points.detach().cpu()[pick], offsets
+    return near_points.detach().cpu()[pick], random_offsets(count, step_m, generator)

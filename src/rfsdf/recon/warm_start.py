@@ -35,6 +35,7 @@ from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, 
 from ..radar.range_peaks import RangePeaks
 from ..scene import Scene
 from .losses import eikonal_penalty, normal_variation
+from .sampling import random_offsets
 
 __all__ = ["detection_threshold", "excluded_voxels", "known_exclusion", "mask_signed_distance", "detection_target",
            "local_peak_amplitude", "fit_to_image", "warm_start"]
@@ -176,9 +177,8 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                 normals = surface_normals[pick].to(device)
                 loss = loss + surface_normal_weight * _misalignment(grad_on, normals).mean()
         if bending_weight > 0 and near_count:
-            offsets = torch.nn.functional.normalize(torch.randn(near_count, 3, generator=generator), dim=1)
-            loss = loss + bending_weight * normal_variation(field.sdf, points[:near_count],
-                                                            bending_step_m * offsets.to(device))
+            offsets = random_offsets(near_count, bending_step_m, generator).to(device)
+            loss = loss + bending_weight * normal_variation(field.sdf, points[:near_count], offsets)
         if target_reflectivity is not None:
             with torch.no_grad():
                 target_gamma = target_reflectivity(points)
