@@ -2,11 +2,15 @@
 
 import json
 
+import numpy as np
 import pytest
+import torch
 from click.testing import CliRunner
 
 from rfsdf.cli import main
-from rfsdf.studies import STUDIES
+from rfsdf.materials import MATERIAL_CLASSES, get_material
+from rfsdf.studies import STUDIES, basin
+from rfsdf.studies.ball_fit import small_radar
 
 
 @pytest.fixture(scope="module")
@@ -154,3 +158,19 @@ def test_basin_each_loss_is_lowest_at_the_truth_and_rises_with_the_error(results
     assert r["start_observed_mm"][0] < r["start_observed_mm"][1]
     for schedule, ends in r["end_objects_mm"].items():
         assert len(ends) == len(r["errors_mm"]) and all(set(end) == set(r["start_objects_mm"][0]) for end in ends)
+
+
+def test_basin_losses_read_each_facet_as_told():
+    """``SurfaceLosses(reading=...)``: the true classes read back give the same losses, and a
+    metal sphere read as glass renders every image |Gamma_glass| as bright, so its relative
+    amplitude loss is (1 - |Gamma_glass|)^2."""
+    scene, losses = basin.surface_losses(basin.QUICK)
+    assert [obj.material.name for obj in scene.objects] == ["metal"]
+    as_class = lambda index: (lambda classes: torch.nn.functional.one_hot(  # noqa: E731
+        torch.full_like(classes, index) if index is not None else classes, len(MATERIAL_CLASSES)).float())
+    truth = losses(scene.sdf)
+    assert losses(scene.sdf, reading=as_class(None)) == truth and truth["amplitude"] < 1e-3
+    eps = complex(get_material("glass").permittivity(small_radar().acquisition().center_frequency_hz))
+    gamma = abs((1 - np.sqrt(eps)) / (1 + np.sqrt(eps)))
+    as_glass = losses(scene.sdf, reading=as_class(MATERIAL_CLASSES.index("glass")))
+    assert as_glass["amplitude"] == pytest.approx((1 - gamma) ** 2, rel=0.03)

@@ -239,14 +239,17 @@ class SurfaceLosses:
         amplitude = self.renderer.observed.abs()
         self.voxels = (amplitude > 0.02).any(0).nonzero().squeeze(1)
 
-    def __call__(self, sdf, *, per_voxel: bool = False) -> dict[str, float] | dict[str, torch.Tensor]:
+    def __call__(self, sdf, *, per_voxel: bool = False, reading=None) -> dict[str, float] | dict[str, torch.Tensor]:
         """Each loss of the surface ``sdf``; ``per_voxel``: each shown voxel's share of it, (X,)
-        over ``self.voxels`` (the data losses' ``per_voxel``)."""
+        over ``self.voxels`` (the data losses' ``per_voxel``). ``reading``: each facet's true class
+        index (N,) -> the class probabilities (N, len(MATERIAL_CLASSES)) it reflects with, as a
+        fit's material head might read it; None: each facet its own class."""
         renderer = self.renderer
         with torch.no_grad():
             renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
             classes = self.known(renderer.candidates.anchors)
-            probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
+            probabilities = (torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float() if reading is None
+                             else reading(classes))
             halves = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), self.voxels, geometry=False,
                               probabilities=probabilities, bands=True) * (self.gain / renderer.observed_peak)
         images = {True: halves, False: renderer.full_band(halves)}  # one rendering for every loss
