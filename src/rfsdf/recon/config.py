@@ -15,6 +15,7 @@ from pydantic import (
 
 from ..config import StrictModel, load_model
 from ..materials import MATERIAL_CLASSES
+from .losses import BENDING_STEP_M
 
 __all__ = ["ReconConfig", "load_recon_config"]
 
@@ -220,7 +221,7 @@ class LossConfig(StrictModel):
     # ripples of the zero set; at 1 the demo's fit ends as without it (docs/results/
     # demo-quality.md, "Tilted surfaces"); 0: off
     bending_weight: NonNegativeFloat = 0.0
-    bending_step_m: PositiveFloat = 0.003
+    bending_step_m: PositiveFloat = BENDING_STEP_M
     bending_points: PositiveInt = 2048
 
     @field_validator("data")

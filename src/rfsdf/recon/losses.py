@@ -26,9 +26,10 @@ from ..registry import Registry
 
 __all__ = ["DATA_LOSSES", "amplitude_loss", "power_loss", "complex_loss", "split_spectrum_loss", "bands_of",
            "uses_phase", "peak_offset", "peak_match_loss", "material_entropy",
-           "material_cross_entropy", "eikonal_loss", "eikonal_penalty", "normal_variation"]
+           "material_cross_entropy", "eikonal_loss", "eikonal_penalty", "normal_variation", "BENDING_STEP_M"]
 
 DATA_LOSSES: Registry = Registry("data loss")
+BENDING_STEP_M = 0.003  # normal_variation's offset [m] unless told (LossConfig.bending_step_m)
 
 
 def _relative(squared_residual: torch.Tensor, squared_observed: torch.Tensor, per_voxel: bool) -> torch.Tensor:

@@ -34,7 +34,7 @@ from ..progress import progress_bar
 from ..radar.detection import amplitude_of, detection_mask, in_front_of_ridges, on_range_sidelobes, window_voxels
 from ..radar.range_peaks import RangePeaks
 from ..scene import Scene
-from .losses import eikonal_penalty, normal_variation
+from .losses import BENDING_STEP_M, eikonal_penalty, normal_variation
 from .sampling import random_offsets
 
 __all__ = ["detection_threshold", "excluded_voxels", "known_exclusion", "mask_signed_distance", "detection_target",
@@ -120,7 +120,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                  target_normal: Callable | None = None, normal_weight: float = 0.0,
                  surface_m: torch.Tensor | None = None, surface_weights: torch.Tensor | None = None,
                  surface_weight: float = 0.0, surface_normals: torch.Tensor | None = None,
-                 surface_normal_weight: float = 0.0, bending_weight: float = 0.0, bending_step_m: float = 0.003,
+                 surface_normal_weight: float = 0.0, bending_weight: float = 0.0, bending_step_m: float = BENDING_STEP_M,
                  progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
@@ -226,7 +226,7 @@ def warm_start(field, power: np.ndarray, grid: Grid, *, threshold: float, local_
                near_share: float = 0.0, exclude: np.ndarray | None = None, normals: np.ndarray | None = None,
                normal_weight: float = 0.0, peaks: RangePeaks | None = None, peak_weight: float = 0.0,
                peak_normal_weight: float = 0.0, peak_apex_m: float = 0.0, bending_weight: float = 0.0,
-               bending_step_m: float = 0.003, progress: bool = False) -> float:
+               bending_step_m: float = BENDING_STEP_M, progress: bool = False) -> float:
     """Fit ``field`` to the image ``power`` (grid.shape, view-mean MF or CLEAN power): f to the
     signed distance of :func:`detection_target` (``exclude`` as there), Gamma to the local peak
     amplitude (both interpolated between voxel centres), and with ``normals`` ((3, *grid.shape)
