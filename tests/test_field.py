@@ -7,6 +7,7 @@ from rfsdf.field import PositionalEncoding, RadarField, levels_for
 from rfsdf.geometry import Sphere
 from rfsdf.recon import eikonal_loss
 from rfsdf.recon.losses import normal_variation
+from rfsdf.recon.sampling import random_offsets
 
 
 def test_levels_for_resolves_the_feature():
@@ -73,7 +74,7 @@ def test_normal_variation_is_zero_on_a_plane_and_the_closed_form_on_a_sphere_and
     plane rippled by 0.3 mm over 1 cm costs more than a 2.5 cm ball's curve (the bending energy)."""
     generator = torch.Generator().manual_seed(0)
     points = torch.rand(500, 3, generator=generator) - 0.5
-    offsets = 0.003 * torch.nn.functional.normalize(torch.randn(500, 3, generator=generator), dim=1)
+    offsets = random_offsets(500, 0.003, generator)
     assert normal_variation(lambda p: p[:, 2] - 0.1, points, offsets).item() < 1e-12
     radius, step = 0.025, 0.003
     on_sphere = radius * torch.nn.functional.normalize(torch.randn(500, 3, generator=generator), dim=1)
