@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -86,24 +87,51 @@ def _cooling(start: float) -> list[float]:
     return list(start * np.geomspace(1.0, 1e-3, ANNEALING_SWEEPS)) + [0.0] * 5
 
 
-def render_changes(args) -> dict:
-    """The start's band images at the searched cubes' voxels, the truth's, and each searched
-    cube's change of them (offsets, views, 2, its voxels) for each offset from the start."""
+@dataclass
+class Displaced:
+    """The demo's true surface as the renderer sums it, cut into cubes, and the start displaced
+    from it (``--start``); shared by the image-space search here and ``data_search.py``."""
+
+    scene: object
+    losses: basin.SurfaceLosses
+    points: torch.Tensor  # (Q, 3) the true facets' centroids [m]
+    normals: torch.Tensor  # (Q, 3) their unit normals
+    area: torch.Tensor  # (Q,) [m^2]
+    corners: torch.Tensor  # (Q, 3, 3) [m] relative to the centroids
+    probabilities: torch.Tensor  # (Q, classes) one-hot, the true materials
+    start: torch.Tensor  # (Q, 3) the start's facets [m]
+    start_normals: torch.Tensor  # (Q, 3)
+    error_mm: torch.Tensor  # (Q,) the start's displacement along the true normals
+    cube_of_facet: torch.Tensor  # (Q,) index into cubes
+    cubes: torch.Tensor  # (C, 3) integer corners
+    weights: torch.Tensor  # (C,) each cube's area [m^2]
+    energy: torch.Tensor  # (C,) the data's image energy at each cube's shown voxels
+    searched: torch.Tensor  # (S,) the cubes searched, most energy first
+
+    def per_cube(self, values: torch.Tensor) -> torch.Tensor:
+        """(C,) the area-weighted mean over each cube's facets of per-facet ``values`` (Q,)."""
+        return _cube_mean(values, self.cube_of_facet, self.area, self.weights)
+
+    def reflection(self, facets: torch.Tensor):
+        """cos (Q_f,) -> the Fresnel coefficients of ``facets``' true materials."""
+        permittivities = self.losses.renderer.class_permittivities(MATERIAL_CLASSES)
+        return lambda cos: mixture_fresnel(cos, self.probabilities[facets], permittivities).to(torch.complex64)
+
+
+def displaced(args) -> Displaced:
+    """The true surface (every material and the gain known), its cubes and the displaced start."""
     settings = basin.Settings(device="cpu", radar=args.radar)
     scene, losses = basin.surface_losses(settings)
     renderer = losses.renderer
     renderer.refresh(scene.sdf, scene.sdf(renderer.voxels), torch.Generator().manual_seed(0))
     points, normals, area, corners = renderer.surface_geometry(basin.FixedSurface(scene.sdf), geometry=False)
     probabilities = torch.nn.functional.one_hot(losses.known(renderer.candidates.anchors), len(MATERIAL_CLASSES)).float()
-    permittivities = renderer.class_permittivities(MATERIAL_CLASSES)
-    scale = losses.gain / renderer.observed_peak
     lower = torch.as_tensor(scene.lower_m, dtype=points.dtype)
     cube_of_facet, cubes = _cubes(points, lower, args.cell_m)
     field = basin.smooth_displacement(scene, settings.correlation_m, torch.Generator().manual_seed(settings.seed))
     weights = torch.zeros(len(cubes), dtype=points.dtype).index_add_(0, cube_of_facet, area)
-    per_cube = lambda values: torch.zeros(len(cubes), dtype=values.dtype).index_add_(0, cube_of_facet, values * area) / weights  # noqa: E731
     if args.start == "cubes":  # each cube's facets moved rigidly by the field at the cube, rounded to a searched offset
-        centres = torch.stack([per_cube(points[:, i]) for i in range(3)], 1)
+        centres = torch.stack([_cube_mean(points[:, i], cube_of_facet, area, weights) for i in range(3)], 1)
         limit = args.span_mm - STEP_MM
         error_mm = torch.as_tensor(np.clip(np.round(args.error_mm * field(centres).double().numpy() / STEP_MM) * STEP_MM,
                                            -limit, limit), dtype=points.dtype)[cube_of_facet]
@@ -121,6 +149,20 @@ def render_changes(args) -> dict:
     energy = torch.zeros(len(cubes)).index_add_(0, voxel_cubes.clamp(min=0),
                                                (renderer.observed[:, losses.voxels].abs() ** 2).sum(0) * (voxel_cubes >= 0))
     searched = energy.argsort(descending=True)[:args.cells or len(cubes)]
+    return Displaced(scene, losses, points, normals, area, corners, probabilities, start, start_normals, error_mm,
+                     cube_of_facet, cubes, weights, energy, searched)
+
+
+def render_changes(args) -> dict:
+    """The start's band images at the searched cubes' voxels, the truth's, and each searched
+    cube's change of them (offsets, views, 2, its voxels) for each offset from the start."""
+    d = displaced(args)
+    renderer, losses, searched = d.losses.renderer, d.losses, d.searched
+    points, normals, area, corners, start = d.points, d.normals, d.area, d.corners, d.start
+    scale = losses.gain / renderer.observed_peak
+    lower = torch.as_tensor(d.scene.lower_m, dtype=points.dtype)
+    cubes = d.cubes
+    voxels = renderer.voxels[losses.voxels]
     near = [((voxels >= lower + cubes[c] * args.cell_m - args.margin_m)
              & (voxels < lower + (cubes[c] + 1) * args.cell_m + args.margin_m)).all(1).nonzero().squeeze(1)
             for c in searched.tolist()]
@@ -128,9 +170,9 @@ def render_changes(args) -> dict:
     at = torch.full((len(voxels),), -1, dtype=torch.long)
     at[region] = torch.arange(len(region))
 
-    def images(view: int, facets: torch.Tensor, where: torch.Tensor, voxel: torch.Tensor, facing=start_normals) -> torch.Tensor:
-        reflection = lambda cos: mixture_fresnel(cos, probabilities[facets], permittivities).to(torch.complex64)  # noqa: E731
-        data = renderer.predict_data(view, where, facing[facets], area[facets], reflection, corners[facets])
+    def images(view: int, facets: torch.Tensor, where: torch.Tensor, voxel: torch.Tensor,
+               facing=d.start_normals) -> torch.Tensor:
+        data = renderer.predict_data(view, where, facing[facets], area[facets], d.reflection(facets), corners[facets])
         return renderer._band_images(view, data, voxels[voxel], losses.voxels[voxel]) * scale
 
     offsets_mm = np.arange(-args.span_mm, args.span_mm + 1e-9, STEP_MM)
@@ -142,7 +184,7 @@ def render_changes(args) -> dict:
             truth_images[view] += images(view, chunk, points[chunk], region, normals)
     changes = []
     for j, c in enumerate(searched.tolist()):
-        members = (cube_of_facet == c).nonzero().squeeze(1)
+        members = (d.cube_of_facet == c).nonzero().squeeze(1)
         change = torch.zeros(len(offsets_mm), renderer.num_views, 2, len(near[j]), dtype=torch.complex64)
         for view in range(renderer.num_views):
             lit = members[renderer.lit[view, members]]
@@ -154,10 +196,15 @@ def render_changes(args) -> dict:
                     change[o, view] = images(view, lit, start[lit] + offset * 1e-3 * normals[lit], near[j]) - held
         changes.append(change)
         print(f"cube {j + 1}/{len(searched)}: {len(members)} facets, {len(near[j])} voxels", flush=True)
-    return {"offsets_mm": offsets_mm, "truth_mm": -per_cube(error_mm)[searched].numpy(), "energy": energy[searched].numpy(),
-            "energy_share": float(energy[searched].sum() / energy.sum()), "near": [at[n] for n in near],
+    return {"offsets_mm": offsets_mm, "truth_mm": -d.per_cube(d.error_mm)[searched].numpy(), "energy": d.energy[searched].numpy(),
+            "energy_share": float(d.energy[searched].sum() / d.energy.sum()), "near": [at[n] for n in near],
             "changes": changes, "start": start_images, "truth": truth_images,
             "observed": renderer.band_observed[:, :, losses.voxels[region]], "band_shares": renderer.band_shares}
+
+
+def _cube_mean(values: torch.Tensor, cube_of_facet: torch.Tensor, area: torch.Tensor, weights: torch.Tensor):
+    """(C,) the area-weighted mean over each cube's facets of per-facet ``values`` (Q,)."""
+    return torch.zeros(len(weights), dtype=values.dtype).index_add_(0, cube_of_facet, values * area) / weights
 
 
 def _cubes(points: torch.Tensor, lower: torch.Tensor, size_m: float, known: torch.Tensor | None = None):
@@ -233,20 +280,29 @@ class JointSearch:
             for j in rng.permutation(len(state)):
                 near, change = self.near[j], self.changes[j]
                 losses = self.misfit(name, images[:, :, near] - change[state[j]] + change, near, turn).double().numpy()
-                if temperature > 0:
-                    weights = np.exp(-(losses - losses.min()) / temperature)
-                    choice = int(rng.choice(len(losses), p=weights / weights.sum()))
-                else:  # the lowest, the present offset where it ties
-                    choice = state[j] if losses[state[j]] <= losses.min() else int(np.argmin(losses))
+                choice = draw(losses, state[j], temperature, rng)
                 images[:, :, near] += change[choice] - change[state[j]]
                 state[j] = choice
         return state
 
     def report(self, state: np.ndarray) -> dict:
-        """How far the seen cubes' offsets lie from the truth's (their mean over each cube's facets)."""
-        miss, energy = np.abs(self.offsets_mm[state] - self.truth_mm)[self.seen], self.energy[self.seen]
-        return {"median_miss_mm": float(np.median(miss)), "share_within_0.5_mm": float(np.mean(miss <= 0.5)),
-                "energy_weighted_miss_mm": float((energy * miss).sum() / energy.sum())}
+        return miss_report(np.abs(self.offsets_mm[state] - self.truth_mm)[self.seen], self.energy[self.seen])
+
+
+def draw(losses: np.ndarray, present: int, temperature: float, rng: np.random.Generator) -> int:
+    """An offset index drawn from exp(-loss / T) over the candidates' ``losses``, or (T = 0)
+    the lowest, the ``present`` one where it ties."""
+    if temperature > 0:
+        weights = np.exp(-(losses - losses.min()) / temperature)
+        return int(rng.choice(len(losses), p=weights / weights.sum()))
+    return present if losses[present] <= losses.min() else int(np.argmin(losses))
+
+
+def miss_report(miss: np.ndarray, energy: np.ndarray) -> dict:
+    """How far the seen cubes' offsets lie from the truth's (their mean over each cube's
+    facets), ``miss`` [mm] and each cube's data ``energy``, (S,) each."""
+    return {"median_miss_mm": float(np.median(miss)), "share_within_0.5_mm": float(np.mean(miss <= 0.5)),
+            "energy_weighted_miss_mm": float((energy * miss).sum() / energy.sum())}
 
 
 if __name__ == "__main__":
