@@ -99,6 +99,7 @@ class Displaced:
     area: torch.Tensor  # (Q,) [m^2]
     corners: torch.Tensor  # (Q, 3, 3) [m] relative to the centroids
     probabilities: torch.Tensor  # (Q, classes) one-hot, the true materials
+    permittivities: torch.Tensor  # (classes,) at the data's centre frequency
     start: torch.Tensor  # (Q, 3) the start's facets [m]
     start_normals: torch.Tensor  # (Q, 3)
     error_mm: torch.Tensor  # (Q,) the start's displacement along the true normals
@@ -114,8 +115,7 @@ class Displaced:
 
     def reflection(self, facets: torch.Tensor):
         """cos (Q_f,) -> the Fresnel coefficients of ``facets``' true materials."""
-        permittivities = self.losses.renderer.class_permittivities(MATERIAL_CLASSES)
-        return lambda cos: mixture_fresnel(cos, self.probabilities[facets], permittivities).to(torch.complex64)
+        return lambda cos: mixture_fresnel(cos, self.probabilities[facets], self.permittivities).to(torch.complex64)
 
 
 def displaced(args) -> Displaced:
@@ -149,7 +149,8 @@ def displaced(args) -> Displaced:
     energy = torch.zeros(len(cubes)).index_add_(0, voxel_cubes.clamp(min=0),
                                                (renderer.observed[:, losses.voxels].abs() ** 2).sum(0) * (voxel_cubes >= 0))
     searched = energy.argsort(descending=True)[:args.cells or len(cubes)]
-    return Displaced(scene, losses, points, normals, area, corners, probabilities, start, start_normals, error_mm,
+    return Displaced(scene, losses, points, normals, area, corners, probabilities,
+                     renderer.class_permittivities(MATERIAL_CLASSES), start, start_normals, error_mm,
                      cube_of_facet, cubes, weights, energy, searched)
 
 
