@@ -31,6 +31,25 @@ SMOOTH_MM = (0.5, 1.0, 2.0, 4.0)
 DILATION_MM = (1.0, 2.0)
 
 
+def line_images(renderer, known, lines: torch.Tensor, view: torch.Tensor, sdf) -> torch.Tensor:
+    """(N, S) complex: the renderer's image of the surface ``sdf`` at the points ``lines`` (N, S,
+    3) [m] of each line's view ``view`` (N,), every material known (``known``, a TrueMaterials),
+    the renderer's surface samples refreshed on ``sdf``."""
+    per_view = [torch.nonzero(view == v).squeeze(1) for v in range(renderer.num_views)]
+    with torch.no_grad():
+        renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
+        classes = known(renderer.candidates.anchors)
+        probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
+        _, images = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), torch.arange(1), geometry=False,
+                             probabilities=probabilities,
+                             lines=[lines[i].reshape(-1, 3) if len(i) else None for i in per_view])
+    predicted = torch.zeros(lines.shape[:2], dtype=torch.complex64, device=lines.device)
+    for index, image in zip(per_view, images):
+        if image is not None:
+            predicted[index] = image.reshape(len(index), -1)
+    return predicted
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/peak-match.json"))
@@ -50,21 +69,9 @@ def main() -> None:
         "median": float(signed.median()), "abs_median": float(signed.abs().median()),
         "abs_weighted": float((signed.abs() * amplitude).sum() / amplitude.sum())}}
     data_vertex, data_valid = peak_offset(observed.abs() ** 2, offsets)
-    renderer = trainer.renderer
-    per_view = [torch.nonzero(view == v).squeeze(1) for v in range(renderer.num_views)]
 
     def residuals(sdf) -> dict[str, float]:
-        with torch.no_grad():
-            renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
-            classes = known(renderer.candidates.anchors)
-            probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
-            _, images = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), torch.arange(1), geometry=False,
-                                 probabilities=probabilities,
-                                 lines=[lines[i].reshape(-1, 3) if len(i) else None for i in per_view])
-        predicted = torch.zeros_like(observed)
-        for index, image in zip(per_view, images):
-            if image is not None:
-                predicted[index] = image.reshape(len(index), -1)
+        predicted = line_images(trainer.renderer, known, lines, view, sdf)
         vertex, valid = peak_offset(predicted.abs() ** 2, offsets)
         both = valid & data_valid
         distance, weight = (vertex - data_vertex)[both].abs() * 1e3, amplitude[both]
