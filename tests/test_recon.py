@@ -588,6 +588,27 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
     assert ReconConfig().init.peak_weight > 0
 
 
+
+def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(sphere_data, tmp_path, monkeypatch):
+    """``[init] primitives`` (off by default) runs primitive_start on the warm start's field
+    with its range peaks and the directions towards their views."""
+    import rfsdf.recon.trainer as trainer_module
+
+    _, data = sphere_data
+    seen = {}
+    monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: None)
+    monkeypatch.setattr(trainer_module, "primitive_start",
+                        lambda field, points, towards, *a, **kw: seen.update(points=points, towards=towards) or ["fit"])
+    for on in (False, True):
+        settings = _config(steps=2).model_dump()
+        settings["init"].update(method="mf", threshold=0.05, primitives=on)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{on}")
+        trainer.warm_start()
+        assert (trainer.primitive_fits == ["fit"]) is on and (seen != {}) is on
+    torch.testing.assert_close(seen["points"], trainer.peaks[0])
+    torch.testing.assert_close(seen["towards"], trainer.peaks[3])
+    assert ReconConfig().init.primitives is False
+
 def _known(*objects) -> Scene:
     return Scene(SceneSpec.model_validate({"name": "known", "bounds": {"lower_m": [-0.1] * 3, "upper_m": [0.1] * 3},
                                            "objects": list(objects)}))

@@ -15,7 +15,7 @@ from .mesh_sdf import MeshSDF, load_mesh, load_watertight_mesh, thicken
 from .occupancy import occupancy
 from .primitives import Box, CappedCylinder, Capsule, Cylinder, HalfSpace, Sphere, Torus
 from .tracing import TraceResult, sphere_trace
-from .transforms import Rotate, Scale, Translate, rotation_matrix
+from .transforms import Rotate, Scale, Translate, rotation_from_vector, rotation_matrix
 from .zero_set import SLIVER_AREA, chord_gaps, facet_geometry, project_to_zero_set, refine_creases, vertex_normals
 
 __all__ = [
@@ -24,7 +24,7 @@ __all__ = [
     "load_mesh", "load_watertight_mesh", "thicken",
     "Union", "Intersection", "Complement", "SmoothUnion", "SmoothIntersection",
     "union", "intersection", "complement", "difference", "smooth_union", "smooth_intersection",
-    "Translate", "Rotate", "Scale", "rotation_matrix",
+    "Translate", "Rotate", "Scale", "rotation_matrix", "rotation_from_vector",
     "gradient", "gradient_and_curvature", "normals", "eikonal_residual", "occupancy", "sphere_trace", "TraceResult",
     "project_to_zero_set", "vertex_normals", "chord_gaps", "refine_creases", "facet_geometry", "SLIVER_AREA",
 ]

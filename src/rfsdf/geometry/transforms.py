@@ -8,7 +8,7 @@ import torch
 
 from .base import SDF, _param, as_vector
 
-__all__ = ["Translate", "Rotate", "Scale", "rotation_matrix"]
+__all__ = ["Translate", "Rotate", "Scale", "rotation_matrix", "rotation_from_vector"]
 
 
 def rotation_matrix(axis, angle_rad: float) -> torch.Tensor:
@@ -21,6 +21,24 @@ def rotation_matrix(axis, angle_rad: float) -> torch.Tensor:
     k = torch.tensor([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]], dtype=torch.float64)
     return torch.eye(3, dtype=torch.float64) + math.sin(angle_rad) * k + (1 - math.cos(angle_rad)) * (k @ k)
 
+
+
+def rotation_from_vector(vector: torch.Tensor) -> torch.Tensor:
+    """(3, 3) rotation by the rotation vector ``vector`` (3,) [rad] (axis times angle; Rodrigues),
+    differentiable in it, in its dtype: a fitted frame's orientation (``rotation_matrix`` takes
+    numbers, for a shape's fixed transform).
+
+    >>> quarter = rotation_from_vector(torch.tensor([0.0, 0.0, math.pi / 2], dtype=torch.float64))
+    >>> (quarter @ torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)).round(decimals=12).tolist()
+    [0.0, 1.0, 0.0]
+    """
+    angle = torch.sqrt((vector**2).sum() + torch.finfo(vector.dtype).tiny)
+    k = vector / angle
+    zero = torch.zeros((), dtype=vector.dtype, device=vector.device)
+    cross = torch.stack([torch.stack([zero, -k[2], k[1]]), torch.stack([k[2], zero, -k[0]]),
+                         torch.stack([-k[1], k[0], zero])])
+    eye = torch.eye(3, dtype=vector.dtype, device=vector.device)
+    return eye + torch.sin(angle) * cross + (1 - torch.cos(angle)) * (cross @ cross)
 
 class Translate(SDF):
     """``shape`` moved by ``offset_m`` (3,) [m]: f(p - t)."""

@@ -124,6 +124,11 @@ class InitConfig(StrictModel):
     # scene's objects, or in them, and outside the cavity they close (a box's inside) take
     # no part in the detection nor in the range peaks (warm_start.known_exclusion)
     known_margin_m: NonNegativeFloat = 0.003
+    # after the warm start, replace each of its fragments by the sphere, box, cylinder or torus
+    # that explains the fragment's range peaks (recon.object_primitives), and regress the
+    # network onto that target for the warm start's steps; needs the range peaks
+    # (docs/results/demo-quality.md, "Primitives for the warm start's fragments"). False: as before
+    primitives: bool = False
 
     @field_validator("threshold", mode="before")
     @classmethod

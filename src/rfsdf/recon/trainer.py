@@ -37,6 +37,7 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
+from .object_primitives import primitive_start
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
 from .render import RENDERERS
@@ -189,6 +190,7 @@ class Trainer:
         # unit vectors (N, 3) along which each was found (radar.range_peaks.RangePeaks)
         self.peaks: tuple[torch.Tensor, ...] | None = None
         self._peak_lines: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None  # see peak_lines()
+        self.primitive_fits: list | None = None  # the fragments' primitives, with init.primitives
 
     # Checkpoints -------------------------------------------------------------------------
     @property
@@ -280,6 +282,11 @@ class Trainer:
                    eikonal_weight=ic.eikonal_weight, bending_weight=ic.bending_weight,
                    bending_step_m=self.config.loss.bending_step_m,
                    generator=self.generator, progress=self.progress)
+        if ic.primitives and self.peaks is not None:
+            self.primitive_fits = primitive_start(
+                self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, steps=ic.steps,
+                lr=ic.lr, batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share,
+                generator=self.generator, progress=self.progress)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:

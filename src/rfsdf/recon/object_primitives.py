@@ -1,0 +1,294 @@
+"""The warm start's fragments replaced by the primitives that explain their range peaks.
+
+The warm start is a regression onto a thresholded image: its seen faces lie within a
+millimetre or two, but its rims are rounded and its faces lumpy, and those errors are shapes,
+not offsets, which neither the loss's phase nor a glint's own phase can read
+(docs/results/demo-quality.md, "Each glint's carrier phase, read line by line"). Most objects
+people image are, or are made of, spheres, boxes, cylinders and tori, which have sharp rims and
+flat faces. So each connected piece of the warm start's interior (a *fragment*: an object, or
+the part of one the views saw) is fitted by each primitive in turn, in a local frame (a centre,
+a rotation vector and log sizes, all differentiable), by Adam on three terms:
+
+- the range peaks in the fragment lie on the surface (a Huber loss of f there, 1 mm knee);
+- the warm start's own surface near the fragment lies on it too, weakly (``SURFACE_WEIGHT``):
+  it bounds the extents the peaks leave open;
+- every peak's line of sight, from 4 mm in front of the peak to 20 cm towards its view, is
+  free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it.
+
+The lowest loss wins. It replaces its fragment where it *explains* the fragment's peaks (their
+median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm) and carves
+no line of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples more than 1 mm
+inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new
+target is the warm start with the replaced fragments cut out, united with their primitives.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import ndimage
+
+from .. import geometry as geo
+from ..geometry import Grid, interpolated_sdf
+from ..progress import progress_bar
+from .warm_start import fit_to_image
+
+__all__ = ["PRIMITIVE_KINDS", "FramedPrimitive", "Fragment", "FragmentFit", "fragments", "free_space",
+           "fit_fragment", "primitive_target", "primitive_start"]
+
+PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "torus")
+FRAGMENT_VOXEL_M = 0.003  # the grid the warm start's interior is labelled on [m]
+MIN_FRAGMENT_M3 = 1e-6  # smaller pieces (floaters) are left as they are: 1 cm^3
+OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
+HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
+SURFACE_WEIGHT = 0.1
+FREE_WEIGHT = 10.0
+FREE_MARGIN_M = 5e-4  # f may go this far negative on a line of sight before it costs [m]
+FREE_STEPS_M = (0.004, 0.2, 40)  # a line of sight's samples: from, to [m], count
+FIT_STEPS, FIT_LR = 300, 1e-3  # Adam's steps, and its rate for the centre [m per step, about]
+ROTATION_LR_SCALE, SIZE_LR_SCALE = 3.0, 10.0  # the rotation's [rad] and the log sizes' rates, over FIT_LR
+SURVIVORS = 2  # the candidates fitted to the end, the lowest after a third of the steps
+FREE_REACH_M = 0.02  # a fragment's fit sees the free space within this of its points' box [m]
+ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 1e-3
+
+
+class FramedPrimitive(torch.nn.Module):
+    """A primitive of ``kind`` in its own frame: ``centre`` (3,) [m], ``rotation`` (3,) a rotation
+    vector [rad] taking the frame's axes to the scene's, and ``sizes`` [m] (sphere: radius; box:
+    three half extents; cylinder: radius and half height, along the frame's z; torus: major and
+    minor radius, about z). Float64 parameters; the shape is the geometry library's."""
+
+    def __init__(self, kind: str, centre, rotation, sizes):
+        super().__init__()
+        if kind not in PRIMITIVE_KINDS:
+            raise ValueError(f"kind must be one of {PRIMITIVE_KINDS}, got {kind!r}")
+        self.kind = kind
+        self.centre = torch.nn.Parameter(torch.as_tensor(centre, dtype=torch.float64).clone())
+        self.rotation = torch.nn.Parameter(torch.as_tensor(rotation, dtype=torch.float64).clone())
+        self.log_sizes = torch.nn.Parameter(torch.log(torch.as_tensor(sizes, dtype=torch.float64)).clone())
+
+    def shape(self) -> geo.SDF:
+        """The primitive about the origin, axis z, at the current sizes (differentiable in them)."""
+        s = self.log_sizes.exp()
+        if self.kind == "sphere":
+            return geo.Sphere(s[0])
+        if self.kind == "box":
+            return geo.Box(s)
+        if self.kind == "cylinder":
+            return geo.CappedCylinder(s[0], 2 * s[1])
+        return geo.Torus(s[0], torch.minimum(s[1], 0.95 * s[0]))
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        """f (N,) [m] at points (N, 3) [m], float64."""
+        local = (points.to(torch.float64) - self.centre) @ geo.rotation_from_vector(self.rotation)
+        return self.shape()(local)
+
+    def describe(self) -> dict:
+        """kind, centre [m], sizes [m] and the frame's axes (rows) in the scene, as plain lists."""
+        axes = geo.rotation_from_vector(self.rotation.detach()).T
+        return {"kind": self.kind, "centre_m": self.centre.detach().tolist(),
+                "sizes_m": self.log_sizes.detach().exp().tolist(), "axes": axes.tolist()}
+
+
+def _rotation_vector(frame: np.ndarray) -> np.ndarray:
+    """The rotation vector of an orthonormal frame (columns), its last axis flipped if it is
+    left-handed."""
+    from scipy.spatial.transform import Rotation
+
+    frame = np.array(frame, dtype=float)
+    if np.linalg.det(frame) < 0:
+        frame[:, 2] *= -1
+    return Rotation.from_matrix(frame).as_rotvec()
+
+
+def candidates(points: np.ndarray) -> list[FramedPrimitive]:
+    """Starting primitives for a fragment's points (N, 3) [m], from their principal axes: a
+    sphere, a box, and a cylinder and a torus about each axis, centred on the middle of the
+    points' 2-98 % range along the axes and sized by it (a fragment seen on one side has its
+    centroid there, not at its middle)."""
+    spread = points - points.mean(0)
+    _, axes = np.linalg.eigh(spread.T @ spread / len(points))
+    axes = axes[:, ::-1]  # largest variance first
+    low, high = np.percentile(points @ axes, [2, 98], axis=0)
+    centre, half = axes @ ((low + high) / 2), np.maximum((high - low) / 2, 2e-3)
+    starts = [FramedPrimitive("sphere", centre, np.full(3, 1e-6), [half.max()]),
+              FramedPrimitive("box", centre, _rotation_vector(axes), half)]
+    for a in range(3):
+        across = [(a + 1) % 3, (a + 2) % 3]
+        rotation = _rotation_vector(axes[:, across + [a]])
+        radius = half[across].max()
+        starts.append(FramedPrimitive("cylinder", centre, rotation, [radius, half[a]]))
+        starts.append(FramedPrimitive("torus", centre, rotation, [0.7 * radius, 0.3 * radius]))
+    return starts
+
+
+@dataclass(frozen=True)
+class Fragment:
+    """A connected piece of the warm start's interior: its ``label`` on the labelled grid, its
+    range ``peaks`` (P, 3) and its warm ``surface`` points (S, 3) [m], float64."""
+
+    label: int
+    peaks: torch.Tensor
+    surface: torch.Tensor
+
+
+@dataclass(frozen=True)
+class FragmentFit:
+    """A fragment's best primitive, its loss, the median |f| at its peaks [m], the share of them
+    within 1 mm, and the share of the free-space samples it carves (more than 1 mm inside)."""
+
+    fragment: Fragment
+    primitive: FramedPrimitive
+    loss: float
+    peaks_median_m: float
+    peaks_within: float
+    carved: float
+
+    @property
+    def explains(self) -> bool:
+        """Whether the primitive replaces its fragment (the module docstring's rule)."""
+        return (self.peaks_median_m < ACCEPT_MEDIAN_M and self.peaks_within >= ACCEPT_WITHIN
+                and self.carved < ACCEPT_CARVED)
+
+
+def _surface_points(sdf, points: torch.Tensor) -> torch.Tensor:
+    """``points`` (N, 3) projected along the gradient onto the zero set of ``sdf``, float64."""
+    points = points.clone().requires_grad_(True)
+    values = sdf(points)
+    (grad,) = torch.autograd.grad(values.sum(), points)
+    normal = grad / grad.norm(dim=1, keepdim=True).clamp(min=1e-6)
+    return (points - values[:, None] * normal).detach().double()
+
+
+def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor) -> tuple[np.ndarray, Grid, list[Fragment]]:
+    """The labelled interior of ``sdf`` (float32 points -> f [m]) on a ``FRAGMENT_VOXEL_M`` grid
+    over the box, that grid, and its fragments of at least ``MIN_FRAGMENT_M3``, each with the
+    ``peaks`` (P, 3) [m] and the zero-set points within ``OWNER_REACH_M`` of its voxels."""
+    grid = Grid.from_voxel(lower_m, upper_m, FRAGMENT_VOXEL_M)
+    points = grid.points()
+    with torch.no_grad():
+        values = torch.cat([sdf(chunk) for chunk in points.split(1 << 16)])
+    labels, count = ndimage.label((values < 0).reshape(grid.shape).numpy())
+    volumes = ndimage.sum(np.ones(grid.shape), labels, range(1, count + 1)) * float(np.prod(grid.voxel_m))
+    kept = [label for label, volume in zip(range(1, count + 1), volumes) if volume >= MIN_FRAGMENT_M3]
+    inside = np.isin(labels, kept).reshape(-1)
+    voxels, owners = points[torch.from_numpy(inside)].double(), torch.from_numpy(labels.reshape(-1)[inside])
+    surface = _surface_points(sdf, points[values.abs() < FRAGMENT_VOXEL_M])
+    peaks = peaks.double()
+
+    def owner(x: torch.Tensor) -> torch.Tensor:
+        distance, nearest = torch.cdist(x, voxels).min(1)
+        return torch.where(distance < OWNER_REACH_M, owners[nearest], torch.zeros_like(owners[nearest]))
+
+    surface_owner, peak_owner = owner(surface), owner(peaks)
+    return labels, grid, [Fragment(label, peaks[peak_owner == label], surface[surface_owner == label])
+                          for label in kept]
+
+
+def free_space(points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m) -> torch.Tensor:
+    """(M, 3) float64 samples [m] of each peak's line of sight (peaks (N, 3), unit directions
+    towards their views (N, 3)), ``FREE_STEPS_M`` along it, inside the box."""
+    steps = torch.linspace(*FREE_STEPS_M[:2], FREE_STEPS_M[2], dtype=torch.float64)
+    samples = (points.double()[:, None] + steps[None, :, None] * towards.double()[:, None]).reshape(-1, 3)
+    lower, upper = torch.as_tensor(lower_m, dtype=torch.float64), torch.as_tensor(upper_m, dtype=torch.float64)
+    return samples[((samples > lower) & (samples < upper)).all(1)]
+
+
+def _huber(values: torch.Tensor) -> torch.Tensor:
+    return torch.nn.functional.huber_loss(values, torch.zeros_like(values), delta=HUBER_M) / HUBER_M
+
+
+def _loss(primitive: FramedPrimitive, fragment: Fragment, free: torch.Tensor) -> torch.Tensor:
+    loss = SURFACE_WEIGHT * _huber(primitive(fragment.surface))
+    if len(fragment.peaks):
+        loss = loss + _huber(primitive(fragment.peaks))
+    if len(free):
+        loss = loss + FREE_WEIGHT * torch.relu(-primitive(free) - FREE_MARGIN_M).mean()
+    return loss
+
+
+def _descend(primitive: FramedPrimitive, optimizer, schedule, steps: int, fragment: Fragment,
+             free: torch.Tensor) -> float:
+    """``steps`` of Adam on the primitive's loss; the loss after them."""
+    for _ in range(steps):
+        loss = _loss(primitive, fragment, free)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        schedule.step()
+    with torch.no_grad():
+        return float(_loss(primitive, fragment, free))
+
+
+def fit_fragment(fragment: Fragment, free: torch.Tensor, *, steps: int = FIT_STEPS, lr: float = FIT_LR) -> FragmentFit:
+    """Each of :func:`candidates` fitted to ``fragment`` with the free-space samples ``free``
+    (M, 3) near it by Adam (the centre at ``lr``, the rotation and log sizes faster, cosine
+    decay over ``steps``): all for a third of the steps, the ``SURVIVORS`` lowest for the rest;
+    the lowest loss, scored."""
+    points = torch.cat([fragment.surface, fragment.peaks])
+    reach = ((free > points.min(0).values - FREE_REACH_M) & (free < points.max(0).values + FREE_REACH_M)).all(1)
+    free = free[reach]  # the lines of sight a primitive near these points could cross
+    runs = []
+    for primitive in candidates(points.numpy()):
+        optimizer = torch.optim.Adam([{"params": [primitive.centre], "lr": lr},
+                                      {"params": [primitive.rotation], "lr": ROTATION_LR_SCALE * lr},
+                                      {"params": [primitive.log_sizes], "lr": SIZE_LR_SCALE * lr}])
+        schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps)
+        loss = _descend(primitive, optimizer, schedule, steps // 3, fragment, free)
+        runs.append((loss, primitive, optimizer, schedule))
+    runs = sorted(runs, key=lambda run: run[0])[:SURVIVORS]
+    loss, primitive = min(((_descend(p, o, s, steps - steps // 3, fragment, free), p) for _, p, o, s in runs),
+                          key=lambda run: run[0])
+    with torch.no_grad():
+        at_peaks = primitive(fragment.peaks).abs() if len(fragment.peaks) else torch.full((1,), torch.inf)
+        carved = float((primitive(free) < -1e-3).double().mean()) if len(free) else 0.0
+    return FragmentFit(fragment, primitive, loss, float(at_peaks.median()), float((at_peaks < 1e-3).double().mean()),
+                       carved)
+
+
+def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit]):
+    """The new target, points (N, 3) -> f [m] (their dtype and device; computed on the CPU, as
+    ``sdf`` is): ``sdf`` (the warm start, held constant) with the fragments whose primitive
+    :attr:`~FragmentFit.explains` them cut out (a voxel of margin), united with those
+    primitives; ``sdf`` itself where none does."""
+    chosen = [fit for fit in fits if fit.explains]
+    if not chosen:
+        return sdf
+    region = np.isin(labels, [fit.fragment.label for fit in chosen])
+    margin = FRAGMENT_VOXEL_M - ndimage.distance_transform_edt(~region) * FRAGMENT_VOXEL_M
+    cut = interpolated_sdf(torch.as_tensor(margin, dtype=torch.float32).flatten(), grid)
+    primitives = [fit.primitive for fit in chosen]
+
+    def target(points: torch.Tensor) -> torch.Tensor:
+        at = points.detach().cpu()
+        with torch.no_grad():
+            rest = torch.maximum(sdf(at.float()), cut(at.float()))
+            replaced = torch.stack([p(at) for p in primitives]).min(0).values.float()
+        return torch.minimum(rest, replaced).to(points)
+
+    return target
+
+
+def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m, *, steps: int, lr: float,
+                    batch: int, eikonal_weight: float, near_share: float, generator: torch.Generator,
+                    progress: bool = False) -> list[FragmentFit]:
+    """Fit every fragment of ``field``'s surface (the range peaks ``points`` (N, 3) [m], unit
+    directions ``towards`` their views (N, 3)) and regress ``field`` onto :func:`primitive_target`
+    by :func:`~rfsdf.recon.warm_start.fit_to_image` (``steps`` at ``lr``, as the warm start),
+    its reflectivity held where it was. Returns the fits, each with whether it replaced its fragment."""
+    frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
+    labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points)
+    free = free_space(points, towards, lower_m, upper_m)
+    fits = [fit_fragment(piece, free) for piece in progress_bar(pieces, desc="primitives", enabled=progress)]
+    target = primitive_target(frozen.sdf, labels, grid, fits)
+    if any(fit.explains for fit in fits):
+        grid_points = grid.points()
+        near = grid_points[target(grid_points).abs() < FRAGMENT_VOXEL_M]
+        reflectivity = lambda p: frozen.reflectivity(p.cpu()).to(p)  # noqa: E731  (held where it was)
+        fit_to_image(field, lower_m, upper_m, target, reflectivity, steps=steps, lr=lr, batch=batch,
+                     eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
+                     near_jitter_m=FRAGMENT_VOXEL_M, progress=progress)
+    return fits

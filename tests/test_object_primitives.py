@@ -1,0 +1,103 @@
+"""The warm start's fragments read as primitives (rfsdf.recon.object_primitives)."""
+
+import math
+
+import pytest
+import torch
+
+from rfsdf import geometry as geo
+from rfsdf.recon.object_primitives import (FramedPrimitive, Fragment, FragmentFit, fit_fragment, fragments,
+                                          free_space, primitive_target)
+
+TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
+CENTRE = [0.01, -0.02, 0.005]
+
+
+def _turned(shape: geo.SDF) -> geo.SDF:
+    angle = math.sqrt(sum(c * c for c in TURN))
+    return shape.rotate([c / angle for c in TURN], angle).translate(CENTRE)
+
+
+@pytest.mark.parametrize("kind, sizes, reference", [
+    ("sphere", [0.02], geo.Sphere(0.02)),
+    ("box", [0.03, 0.02, 0.01], geo.Box([0.03, 0.02, 0.01])),
+    ("cylinder", [0.015, 0.03], geo.CappedCylinder(0.015, 0.06)),
+    ("torus", [0.03, 0.01], geo.Torus(0.03, 0.01)),
+])
+def test_a_framed_primitive_is_the_library_shape_turned_and_moved(kind, sizes, reference):
+    points = torch.randn(200, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0)) * 0.03
+    framed = FramedPrimitive(kind, CENTRE, TURN, sizes)
+    torch.testing.assert_close(framed(points).detach(), _turned(reference)(points))
+
+
+def _on(sdf, count: int, seed: int) -> torch.Tensor:
+    """Points on the zero set of ``sdf``: random points near it, projected (three Newton steps)."""
+    points = (torch.rand(count, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(seed)) - 0.5) * 0.12
+    for _ in range(3):
+        points = points - sdf(points)[:, None] * geo.normals(sdf, points)
+    return points[sdf(points).abs() < 1e-6]
+
+
+def _seen_from(truth, views: torch.Tensor, count: int = 200) -> tuple[torch.Tensor, torch.Tensor]:
+    """``count`` points of ``truth``'s surface that face one of the unit ``views`` within 25
+    degrees (its peaks) and the directions towards their views."""
+    points = _on(truth, 4000, seed=1)
+    facing = geo.normals(truth, points) @ views.T  # (N, V)
+    best, view = facing.max(1)
+    keep = torch.nonzero(best > math.cos(math.radians(25))).squeeze(1)[:count]
+    return points[keep], views[view[keep]]
+
+
+@pytest.mark.parametrize("kind, sizes, reference", [
+    ("box", [0.03, 0.02, 0.015], geo.Box([0.03, 0.02, 0.015])),
+    ("sphere", [0.025], geo.Sphere(0.025)),
+])
+def test_a_fragment_with_rounded_rims_is_read_as_its_sharp_primitive(kind, sizes, reference):
+    """A fragment seen on a few faces, its warm surface a rounded, 1 mm swollen version of the
+    truth (the warm start's shape errors), comes back as the true primitive: the peaks, the
+    free space in front of them, and the rounded surface weakly."""
+    truth = _turned(reference)
+    views = torch.tensor([[1.0, 0.2, 0.1], [-0.2, 1.0, 0.3], [0.1, -0.3, 1.0]], dtype=torch.float64)
+    views = views / views.norm(dim=1, keepdim=True)
+    peaks, towards = _seen_from(truth, views)
+    rounded = _turned(geo.Box([s - 0.004 for s in sizes]) if kind == "box" else geo.Sphere(sizes[0] - 0.004))
+    warm = _on(lambda p: rounded(p) - 0.005, 400, seed=2)
+    free = free_space(peaks, towards, [-0.2] * 3, [0.2] * 3)
+    fit = fit_fragment(Fragment(1, peaks, warm), free)
+    assert fit.primitive.kind == kind and fit.explains
+    assert fit.peaks_median_m < 2e-4 and fit.carved == 0
+    true_surface = _on(truth, 2000, seed=3)
+    assert float(fit.primitive(true_surface).detach().abs().median()) < 5e-4  # also where no view sees it
+
+
+def test_free_space_follows_each_line_of_sight_inside_the_box():
+    points = torch.tensor([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]], dtype=torch.float64)
+    towards = torch.tensor([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]], dtype=torch.float64)
+    samples = free_space(points, towards, [-0.1] * 3, [0.1] * 3)
+    along_z = samples[samples[:, 0] == 0.0]
+    assert along_z[:, 2].min() == pytest.approx(0.004) and along_z[:, 2].max() < 0.1
+    assert (samples.abs() < 0.1).all() and len(samples) < 80  # the second line leaves the box at 5 cm
+
+
+def test_the_target_replaces_the_explained_fragments_only():
+    """Two fragments, a lumpy ball and a far box: with the ball explained by its sphere the
+    target is that sphere near the ball and the warm start near the box."""
+    ball = lambda p: (p - torch.tensor([0.05, 0.0, 0.0], dtype=p.dtype)).norm(dim=1) - 0.02 \
+        + 0.002 * torch.sin(200 * p[:, 0])  # noqa: E731
+    box = geo.Box([0.015, 0.015, 0.015], [-0.06, 0.0, 0.0])
+    warm = lambda p: torch.minimum(ball(p.double()), box(p.double())).to(p.dtype)  # noqa: E731
+    labels, grid, pieces = fragments(warm, [-0.1] * 3, [0.1] * 3, torch.zeros(0, 3))
+    assert len(pieces) == 2
+    ball_piece = next(piece for piece in pieces if piece.surface[:, 0].mean() > 0)
+    box_piece = next(piece for piece in pieces if piece is not ball_piece)
+    sphere = FramedPrimitive("sphere", [0.05, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
+    cube = FramedPrimitive("box", [-0.06, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02, 0.02, 0.02])
+    fits = [FragmentFit(ball_piece, sphere, 0.0, 0.0, 1.0, 0.0), FragmentFit(box_piece, cube, 1.0, 0.01, 0.0, 0.0)]
+    assert [fit.explains for fit in fits] == [True, False]
+    target = primitive_target(warm, labels, grid, fits)
+    near_ball = _on(lambda p: sphere(p), 500, seed=4).float()
+    near_box = box_piece.surface.float()
+    assert target(near_ball).abs().max() < 1e-4  # the sphere's surface, not the lumps'
+    torch.testing.assert_close(target(near_box), warm(near_box))
+    assert primitive_target(warm, labels, grid, fits[1:]) is warm
+
