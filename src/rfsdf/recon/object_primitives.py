@@ -16,9 +16,9 @@ a rotation vector and log sizes, all differentiable), by Adam on three terms:
   free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it.
 
 The lowest loss wins. It replaces its fragment where it *explains* the fragment's peaks (their
-median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm) and carves
-no line of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples more than 1 mm
-inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new
+median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm) and hardly
+carves the lines of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples near it more
+than 1 mm inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new
 target is the warm start with the replaced fragments cut out, united with their primitives.
 """
 
@@ -52,7 +52,9 @@ FIT_STEPS, FIT_LR = 300, 1e-3  # Adam's steps, and its rate for the centre [m pe
 ROTATION_LR_SCALE, SIZE_LR_SCALE = 3.0, 10.0  # the rotation's [rad] and the log sizes' rates, over FIT_LR
 SURVIVORS = 2  # the candidates fitted to the end, the lowest after a third of the steps
 FREE_REACH_M = 0.02  # a fragment's fit sees the free space within this of its points' box [m]
-ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 1e-3
+# a few lines of sight of peaks not exactly on the surface cross it: 0.9 % of the samples near
+# the demo's metal ball, whose sphere stands within 0.3 mm of the truth
+ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 0.02
 
 
 class FramedPrimitive(torch.nn.Module):

@@ -1,0 +1,79 @@
+"""What `[init] primitives` makes of the demo's warm start, before the network is regressed
+onto it. The warm start as `rfsdf demo` builds it (seed 0, calibrated by the scene's
+reference); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
+(`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
+replaces the fragment; then the warm start and the target (`primitive_target`) scored as the
+demo scores a mesh (whole and observed Chamfer, per object). The fit from it:
+`python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
+
+Usage: python benchmarks/primitive_start.py [--out benchmarks/results/primitive-start.json]  (~8 min on 2 cores)
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from functools import partial
+from pathlib import Path
+
+import torch
+from demo_data import demo_data
+from seeds import _scores
+
+from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.jsonio import to_json
+from rfsdf.material_estimates import scene_reference
+from rfsdf.mesh import extract_mesh
+from rfsdf.metrics import evaluate_scene
+from rfsdf.radar.clean import clean_image
+from rfsdf.radar.coverage import observed_mask
+from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.recon.object_primitives import fit_fragment, fragments, free_space, primitive_target
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/primitive-start.json"))
+    args = parser.parse_args()
+    settings = DemoSettings(relative=False)
+    data = demo_data(settings)
+    scene, grid = data.scene, data.image.grid
+    config = with_scene_reference(ReconConfig(), scene, settings)
+    reference = scene_reference(scene, config.calibration, data.measurements.acquisition)
+    problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),
+                      known_materials=reference.labels(tuple(config.field.materials)))
+    with tempfile.TemporaryDirectory() as run:
+        trainer = Trainer(problem, config, run)
+        trainer.warm_start()
+    warm = trainer.field.requires_grad_(False)
+    points, _, _, towards = trainer.peaks
+    labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points)
+    free = free_space(points, towards, scene.lower_m, scene.upper_m)
+    fits = []
+    for piece in pieces:
+        fits.append(fit_fragment(piece, free))
+        print(fits[-1].primitive.kind, f"{fits[-1].peaks_median_m * 1e3:.2f} mm", fits[-1].explains, flush=True)
+    names = [o.name for o in scene.objects]
+    rows = []
+    for fit in fits:
+        with torch.no_grad():
+            nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
+        rows.append({"object": names[int(nearest.mode().values)], "peaks": len(fit.fragment.peaks),
+                     **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
+                     "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains})
+    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
+                    observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
+
+    def scored(sdf) -> dict:
+        metrics = score(extract_mesh(sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution))
+        return {**_scores(metrics), "object_chamfer_mm": {name: m.chamfer_l1_mm for name, m in metrics.objects.items()}}
+
+    target = primitive_target(warm.sdf, labels, fragment_grid, fits)
+    result = {"fragments": rows, "warm start": scored(warm.sdf), "target": scored(target)}
+    print(to_json({key: result[key]["observed_chamfer_l1_mm"] for key in ("warm start", "target")}))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(to_json(result))
+
+
+if __name__ == "__main__":
+    main()
