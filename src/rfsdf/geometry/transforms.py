@@ -22,7 +22,6 @@ def rotation_matrix(axis, angle_rad: float) -> torch.Tensor:
     return torch.eye(3, dtype=torch.float64) + math.sin(angle_rad) * k + (1 - math.cos(angle_rad)) * (k @ k)
 
 
-
 def rotation_from_vector(vector: torch.Tensor) -> torch.Tensor:
     """(3, 3) rotation by the rotation vector ``vector`` (3,) [rad] (axis times angle; Rodrigues),
     differentiable in it, in its dtype: a fitted frame's orientation (``rotation_matrix`` takes
@@ -39,6 +38,7 @@ def rotation_from_vector(vector: torch.Tensor) -> torch.Tensor:
                          torch.stack([-k[1], k[0], zero])])
     eye = torch.eye(3, dtype=vector.dtype, device=vector.device)
     return eye + torch.sin(angle) * cross + (1 - torch.cos(angle)) * (cross @ cross)
+
 
 class Translate(SDF):
     """``shape`` moved by ``offset_m`` (3,) [m]: f(p - t)."""

@@ -37,9 +37,9 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .object_primitives import primitive_start
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
+from .object_primitives import primitive_start
 from .render import RENDERERS
 from .sampling import bending_pairs, data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
