@@ -7,7 +7,7 @@ import torch
 
 from rfsdf import geometry as geo
 from rfsdf.recon.object_primitives import (FramedPrimitive, Fragment, FragmentFit, fit_fragment, fragments,
-                                          free_space, primitive_target)
+                                          free_space, primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -101,3 +101,16 @@ def test_the_target_replaces_the_explained_fragments_only():
     torch.testing.assert_close(target(near_box), warm(near_box))
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
 
+
+
+def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
+    """A sphere half sunk in a box: the pins are the sphere's surface outside the box only."""
+    sphere = FramedPrimitive("sphere", [0.0, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
+    box = geo.Box([0.02, 0.04, 0.04], [-0.02, 0.0, 0.0])  # covers the ball's x < 0 half
+    target = lambda p: torch.minimum(sphere(p), box(p.double()).to(p.dtype)).detach()  # noqa: E731
+    near = (torch.rand(2000, 3, generator=torch.Generator().manual_seed(1)) - 0.5) * 0.05
+    pins = primitive_surface(target, [sphere], near)
+    assert pins.dtype == torch.float32 and len(pins) > 500
+    assert (pins.double().norm(dim=1) - 0.02).abs().max() < 1e-6  # on the sphere
+    assert (pins[:, 0] > -1e-4).all()  # none where the box covers it
+    assert (pins[:, 0] > 0.01).sum() > len(pins) / 4  # and the free half kept
