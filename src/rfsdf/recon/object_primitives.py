@@ -58,8 +58,8 @@ FREE_REACH_M = 0.02  # a fragment's fit sees the free space within this of its p
 # the demo's metal ball, whose sphere scores 0.38 mm Chamfer against the truth
 ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 0.02
 # the network's regression onto the target also pins f = 0 at points on the replaced fragments'
-# primitives (L1, this weight): without, the demo's ball came back 0.52 mm off the truth where
-# its sphere was 0.38; with, the observed surface 1.68 -> 1.57 mm (docs/results/demo-quality.md)
+# primitives (L1, this weight): on the demo (seed 0) the regressed network's observed surface
+# 1.68 -> 1.57 mm (its target's 1.61; weight 3: 1.55; docs/results/demo-quality.md)
 PIN_WEIGHT, PIN_TOLERANCE_M = 1.0, 1e-4
 
 
@@ -285,7 +285,8 @@ def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m,
     """Fit every fragment of ``field``'s surface (the range peaks ``points`` (N, 3) [m], unit
     directions ``towards`` their views (N, 3)) and regress ``field`` onto :func:`primitive_target`
     by :func:`~rfsdf.recon.warm_start.fit_to_image` (``steps`` at ``lr``, as the warm start),
-    its reflectivity held where it was. Returns the fits, each with whether it replaced its fragment."""
+    its reflectivity held where it was and f = 0 pinned at :func:`primitive_surface`. Returns
+    the fits, each with whether it replaced its fragment."""
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
     labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points)
     free = free_space(points, towards, lower_m, upper_m)
