@@ -102,7 +102,6 @@ def test_the_target_replaces_the_explained_fragments_only():
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
 
 
-
 def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
     """A sphere half sunk in a box: the pins are the sphere's surface outside the box only."""
     sphere = FramedPrimitive("sphere", [0.0, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
