@@ -3,16 +3,24 @@ onto it. The warm start as `rfsdf demo` builds it (seed 0, calibrated by the sce
 reference); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
 replaces the fragment; then the warm start and the target (`primitive_target`) scored as the
-demo scores a mesh (whole and observed Chamfer, per object). The fit from it:
+demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
+target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of the warm start's
+rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
 
-Usage: python benchmarks/primitive_start.py [--out benchmarks/results/primitive-start.json]  (~8 min on 2 cores)
+Usage: python benchmarks/primitive_start.py [--scene objects] [--regressions '[{"steps": 300, "lr_scale": 1}]']
+       [--out benchmarks/results/primitive-start-SCENE.json]
+       (~8 min on 2 cores; the demo's scene writes primitive-start.json)
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
+import dataclasses
+import json
 import tempfile
+import time
 from functools import partial
 from pathlib import Path
 
@@ -28,20 +36,26 @@ from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon import Problem, ReconConfig, Trainer
-from rfsdf.recon.object_primitives import fit_fragment, fragments, free_space, primitive_target
+from rfsdf.recon.object_primitives import fit_fragment, fragments, free_space, primitive_target, regress_to_primitives
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/primitive-start.json"))
+    parser.add_argument("--scene", default=DemoSettings.scene)
+    parser.add_argument("--regressions", type=json.loads, default=[{"steps": 300, "lr_scale": 1.0}],
+                        help="[{steps, lr_scale[, decay, seed]}, ...]: the network's regressions onto the target")
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    settings = DemoSettings(relative=False)
+    settings = dataclasses.replace(DemoSettings(), scene=args.scene)
+    out = args.out or Path("benchmarks/results/" + ("primitive-start.json" if args.scene == DemoSettings.scene
+                                                    else f"primitive-start-{Path(args.scene).stem}.json"))
     data = demo_data(settings)
     scene, grid = data.scene, data.image.grid
     config = with_scene_reference(ReconConfig(), scene, settings)
-    reference = scene_reference(scene, config.calibration, data.measurements.acquisition)
+    reference = (None if config.calibration.reference is None
+                 else scene_reference(scene, config.calibration, data.measurements.acquisition))
     problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),
-                      known_materials=reference.labels(tuple(config.field.materials)))
+                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
     with tempfile.TemporaryDirectory() as run:
         trainer = Trainer(problem, config, run)
         trainer.warm_start()
@@ -69,10 +83,21 @@ def main() -> None:
         return {**_scores(metrics), "object_chamfer_mm": {name: m.chamfer_l1_mm for name, m in metrics.objects.items()}}
 
     target = primitive_target(warm.sdf, labels, fragment_grid, fits)
-    result = {"fragments": rows, "warm start": scored(warm.sdf), "target": scored(target)}
+    result = {"fragments": rows, "warm start": scored(warm.sdf), "target": scored(target), "regressions": []}
     print(to_json({key: result[key]["observed_chamfer_l1_mm"] for key in ("warm start", "target")}))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(to_json(result))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    chosen, ic = [fit for fit in fits if fit.explains], config.init
+    for regression in args.regressions if chosen else []:
+        field, clock = copy.deepcopy(warm).requires_grad_(True), time.perf_counter()
+        regress_to_primitives(field, warm, target, chosen, fragment_grid, steps=regression["steps"],
+                              lr=regression["lr_scale"] * ic.lr, batch=ic.batch, eikonal_weight=ic.eikonal_weight,
+                              near_share=ic.near_share, decay=regression.get("decay", False),
+                              generator=torch.Generator().manual_seed(regression.get("seed", 0)))
+        row = {**regression, "seconds": time.perf_counter() - clock, **scored(field.requires_grad_(False).sdf)}
+        result["regressions"].append(row)
+        print(to_json({key: row[key] for key in (*regression, "seconds", "observed_chamfer_l1_mm")}))
+        out.write_text(to_json(result))
+    out.write_text(to_json(result))
 
 
 if __name__ == "__main__":

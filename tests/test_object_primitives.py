@@ -6,8 +6,10 @@ import pytest
 import torch
 
 from rfsdf import geometry as geo
-from rfsdf.recon.object_primitives import (FramedPrimitive, Fragment, FragmentFit, fit_fragment, fragments,
-                                          free_space, primitive_surface, primitive_target)
+from rfsdf.geometry import project_to_zero_set
+from rfsdf.recon.object_primitives import (FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS,
+                                          FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates, fit_fragment,
+                                          fragments, free_space, primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -33,8 +35,7 @@ def test_a_framed_primitive_is_the_library_shape_turned_and_moved(kind, sizes, r
 def _on(sdf, count: int, seed: int) -> torch.Tensor:
     """Points on the zero set of ``sdf``: random points near it, projected (three Newton steps)."""
     points = (torch.rand(count, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(seed)) - 0.5) * 0.12
-    for _ in range(3):
-        points = points - sdf(points)[:, None] * geo.normals(sdf, points)
+    points = project_to_zero_set(sdf, points)
     return points[sdf(points).abs() < 1e-6]
 
 
@@ -68,6 +69,44 @@ def test_a_fragment_with_rounded_rims_is_read_as_its_sharp_primitive(kind, sizes
     assert fit.peaks_median_m < 2e-4 and fit.carved == 0
     true_surface = _on(truth, 2000, seed=3)
     assert float(fit.primitive(true_surface).detach().abs().median()) < 5e-4  # also where no view sees it
+
+
+def _fitted_alone(fragment: Fragment, free: torch.Tensor, steps: int) -> FramedPrimitive:
+    """The slow reference: each candidate by its own Adam for a third of the steps, the two lowest
+    on for the rest, one at a time."""
+    points = torch.cat([fragment.surface, fragment.peaks])
+    free = free[((free > points.min(0).values - FREE_REACH_M) & (free < points.max(0).values + FREE_REACH_M)).all(1)]
+    evidence = _Evidence(torch.cat([points, free]), (len(fragment.surface), len(fragment.peaks), len(free)))
+    runs = []
+    for primitive in candidates(points.numpy()):
+        optimizer = torch.optim.Adam([{"params": [primitive.centre], "lr": FIT_LR},
+                                      {"params": [primitive.rotation], "lr": ROTATION_LR_SCALE * FIT_LR},
+                                      {"params": [primitive.log_sizes], "lr": SIZE_LR_SCALE * FIT_LR}])
+        schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps)
+        runs.append([primitive, optimizer, schedule])
+    for phase, part in enumerate((steps // 3, steps - steps // 3)):
+        for run in runs:
+            for _ in range(part):
+                run[1].zero_grad()
+                evidence.loss(run[0]).backward()
+                run[1].step()
+                run[2].step()
+        with torch.no_grad():
+            runs = sorted(runs, key=lambda run: float(evidence.loss(run[0])))[:SURVIVORS if phase == 0 else 1]
+    return runs[0][0]
+
+
+def test_the_candidates_fitted_together_end_where_each_fitted_alone_ends():
+    truth = _turned(geo.Box([0.03, 0.02, 0.015]))
+    views = torch.tensor([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], dtype=torch.float64)
+    peaks, towards = _seen_from(truth, views, count=60)
+    fragment = Fragment(1, peaks, _on(lambda p: truth(p) - 0.002, 300, seed=5))
+    free = free_space(peaks, towards, [-0.2] * 3, [0.2] * 3)
+    together = fit_fragment(fragment, free, steps=30).primitive
+    alone = _fitted_alone(fragment, free, 30)
+    assert together.kind == alone.kind
+    for name in ("centre", "rotation", "log_sizes"):
+        torch.testing.assert_close(getattr(together, name), getattr(alone, name), rtol=1e-9, atol=1e-12)
 
 
 def test_free_space_follows_each_line_of_sight_inside_the_box():

@@ -284,8 +284,8 @@ class Trainer:
                    generator=self.generator, progress=self.progress)
         if ic.primitives and self.peaks is not None:
             self.primitive_fits = primitive_start(
-                self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, steps=ic.steps,
-                lr=ic.lr, batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share,
+                self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, lr=ic.lr,
+                batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share,
                 generator=self.generator, progress=self.progress)
 
     @torch.no_grad()

@@ -121,7 +121,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
                  surface_m: torch.Tensor | None = None, surface_weights: torch.Tensor | None = None,
                  surface_weight: float = 0.0, surface_normals: torch.Tensor | None = None,
                  surface_normal_weight: float = 0.0, bending_weight: float = 0.0, bending_step_m: float = BENDING_STEP_M,
-                 progress: bool = False) -> float:
+                 decay: bool = False, progress: bool = False) -> float:
     """Regress ``field`` (a RadarField) onto target functions of points (N, 3) [m] by Adam.
 
     Each step draws ``batch`` points uniformly in the box (not only on a voxel grid, so the
@@ -139,7 +139,8 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     zero where a point's orientation is not known, ``surface_normal_weight`` * |n| (1 - cos(grad
     f, n)) at the same points: Hermite data. ``bending_weight``: the bending energy
     (:func:`~rfsdf.recon.losses.normal_variation`) at the near points, each against a point
-    ``bending_step_m`` [m] away in a random direction. The field's coarse displacement, where it has one,
+    ``bending_step_m`` [m] away in a random direction. ``decay``: the rate annealed to zero over the
+    steps (cosine), so the last step does not stop wherever a batch left the network. The field's coarse displacement, where it has one,
     stays as it is (zero): it is what the fit moves afterwards. Returns the last clipped L1
     residual of f [m].
     """
@@ -148,6 +149,7 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     extent = torch.as_tensor(upper_m, dtype=torch.float32) - lower
     optimizer = torch.optim.Adam([p for name, p in field.named_parameters() if not name.startswith("displacement.")],
                                  lr=lr)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps) if decay else None
     residual = float("nan")
     near_count = 0 if near_m is None or len(near_m) == 0 else int(near_share * batch)
     for _ in progress_bar(range(steps), desc="warm start", enabled=progress):
@@ -186,6 +188,8 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
+        if schedule is not None:
+            schedule.step()
         residual = float(misfit.detach())
     return residual
 
