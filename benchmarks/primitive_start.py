@@ -1,6 +1,6 @@
-"""What `[init] primitives` makes of the demo's warm start, before the network is regressed
-onto it. The warm start as `rfsdf demo` builds it (seed 0, calibrated by the scene's
-reference); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
+"""What `[init] primitives` makes of a scene's warm start (the demo's by default). The warm
+start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
+one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
 replaces the fragment; then the warm start and the target (`primitive_target`) scored as the
 demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
@@ -8,7 +8,8 @@ target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of
 rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
 
-Usage: python benchmarks/primitive_start.py [--scene objects] [--regressions '[{"steps": 300, "lr_scale": 1}]']
+Usage: python benchmarks/primitive_start.py [--scene objects]
+       [--regressions '[{"steps": 100, "lr_scale": 1, "decay": true}]']
        [--out benchmarks/results/primitive-start-SCENE.json]
        (~8 min on 2 cores; the demo's scene writes primitive-start.json)
 """
@@ -36,14 +37,17 @@ from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon import Problem, ReconConfig, Trainer
-from rfsdf.recon.object_primitives import fit_fragment, fragments, free_space, primitive_target, regress_to_primitives
+from rfsdf.recon.object_primitives import (REGRESSION_STEPS, fit_fragment, fragments, free_space, primitive_target,
+                                          regress_to_primitives)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scene", default=DemoSettings.scene)
-    parser.add_argument("--regressions", type=json.loads, default=[{"steps": 300, "lr_scale": 1.0}],
-                        help="[{steps, lr_scale[, decay, seed]}, ...]: the network's regressions onto the target")
+    parser.add_argument("--regressions", type=json.loads,
+                        default=[{"steps": REGRESSION_STEPS, "lr_scale": 1.0, "decay": True}],
+                        help="[{steps, lr_scale[, decay, seed]}, ...]: the network's regressions onto the target "
+                             "(by default `[init] primitives`' own)")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     settings = dataclasses.replace(DemoSettings(), scene=args.scene)

@@ -139,10 +139,10 @@ def fit_to_image(field, lower_m, upper_m, target_sdf: Callable, target_reflectiv
     zero where a point's orientation is not known, ``surface_normal_weight`` * |n| (1 - cos(grad
     f, n)) at the same points: Hermite data. ``bending_weight``: the bending energy
     (:func:`~rfsdf.recon.losses.normal_variation`) at the near points, each against a point
-    ``bending_step_m`` [m] away in a random direction. ``decay``: the rate annealed to zero over the
-    steps (cosine), so the last step does not stop wherever a batch left the network. The field's coarse displacement, where it has one,
-    stays as it is (zero): it is what the fit moves afterwards. Returns the last clipped L1
-    residual of f [m].
+    ``bending_step_m`` [m] away in a random direction. ``decay``: the rate annealed to zero over
+    the steps (cosine), so that the network does not stop wherever the last batches left it.
+    The field's coarse displacement, where it has one, stays as it is (zero): it is what the fit
+    moves afterwards. Returns the last clipped L1 residual of f [m].
     """
     device = next(field.parameters()).device
     lower = torch.as_tensor(lower_m, dtype=torch.float32)
