@@ -90,6 +90,7 @@ def main() -> None:
     result = {"fragments": rows, "warm start": scored(warm.sdf), "target": scored(target), "regressions": []}
     print(to_json({key: result[key]["observed_chamfer_l1_mm"] for key in ("warm start", "target")}))
     out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(to_json(result))
     chosen, ic = [fit for fit in fits if fit.explains], config.init
     for regression in args.regressions if chosen else []:
         field, clock = copy.deepcopy(warm).requires_grad_(True), time.perf_counter()
@@ -101,7 +102,6 @@ def main() -> None:
         result["regressions"].append(row)
         print(to_json({key: row[key] for key in (*regression, "seconds", "observed_chamfer_l1_mm")}))
         out.write_text(to_json(result))
-    out.write_text(to_json(result))
 
 
 if __name__ == "__main__":

@@ -299,8 +299,8 @@ def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid
                           decay: bool = False, progress: bool = False) -> None:
     """Regress ``field`` onto ``target`` (:func:`primitive_target` of ``frozen``, the warm start
     held, over the fragments' ``grid``) by :func:`~rfsdf.recon.warm_start.fit_to_image` (``steps``
-    at ``lr``, cosine-decayed with ``decay``), its reflectivity held where ``frozen``'s was and f = 0 pinned at
-    :func:`primitive_surface` of the ``chosen`` fits' primitives."""
+    at ``lr``, cosine-decayed with ``decay``), its reflectivity held where ``frozen``'s was and
+    f = 0 pinned at :func:`primitive_surface` of the ``chosen`` fits' primitives."""
     grid_points = grid.points()
     near = grid_points[target(grid_points).abs() < FRAGMENT_VOXEL_M]
     pins = primitive_surface(target, [fit.primitive for fit in chosen], near)
