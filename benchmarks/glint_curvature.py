@@ -6,9 +6,9 @@ renders too bright, and a readout of |Gamma| from brightness reads it as the wro
 For one sphere object of the scene and each view, the renderer's facets (the fit's, on the
 image grid) within ``PATCH_M`` of the true sphere's specular point towards the view's centre
 are fitted with a quadric in the local tangent frame: its principal radii and its offset
-along the normal there. The sphere's rendered power in the bright voxels (every view, its
-true material; object_brightness.py's voxels) is compared with the true sphere's.
-Read for the run folder's warm start and its fit (a `rfsdf demo` output folder).
+along the normal there. The sphere's rendered power in the bright voxels (its true
+material; object_brightness.py's voxels), in all and per view, is compared with the true
+sphere's. Read for the run folder's warm start and its fit (a `rfsdf demo` output folder).
 
 Usage: python benchmarks/glint_curvature.py rfsdf-demo [--object metal_ball]
        [--out benchmarks/results/glint-curvature.json]
@@ -94,7 +94,8 @@ def main() -> None:
                                for chunk in voxels.split(1 << 14)], 1)
         rows = glint_radii(anchors[mine].numpy(), centre, radius_m, towards)
         means = [float(np.sqrt(np.prod(row["radii_mm"]))) for row in rows if row and min(row["radii_mm"]) > 0]
-        return {"power": float((image.abs() ** 2).sum()), "views": rows,
+        return {"power": float((image.abs() ** 2).sum()), "view_powers": (image.abs() ** 2).sum(1).tolist(),
+                "views": rows,
                 "mean_radius_mm": {"median": float(np.median(means)), "min": min(means), "max": max(means),
                                    "convex_views": len(means)},
                 "offset_mm_median": float(np.median([row["offset_mm"] for row in rows if row])),
@@ -108,6 +109,8 @@ def main() -> None:
         field.load_state_dict(state[key])
         result[label] = read(lambda p, field=field: field.sdf(p.float()).double())
         result[label]["power_over_truth"] = result[label]["power"] / result["truth"]["power"]
+        result[label]["view_powers_over_truth"] = [mine / true for mine, true in
+                                                   zip(result[label]["view_powers"], result["truth"]["view_powers"])]
     for label in ("truth", "warm_start", "fit"):
         row = result[label]
         print(f"{label:<10} sqrt(R1 R2) at the glints, median {row['mean_radius_mm']['median']:.1f} mm "
