@@ -66,6 +66,9 @@ def main() -> None:
     parser.add_argument("--object", default="metal_ball")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/glint-curvature.json"))
     args = parser.parse_args()
+    for name in ("demo-settings.json", "measurements.h5", f"run/{CHECKPOINT_NAME}"):
+        if not (args.folder / name).is_file():
+            raise SystemExit(f"{args.folder}: no {name}; is this a `rfsdf demo` output folder?")
     settings = json.loads((args.folder / "demo-settings.json").read_text())
     scene = load_scene(settings["scene"])
     names = [obj.name for obj in scene.objects]
