@@ -24,11 +24,10 @@ import numpy as np
 import torch
 from object_brightness import BRIGHT
 
-from rfsdf.geometry import Grid
-from rfsdf.geometry.primitives import Sphere
+from rfsdf.field import RadarField
+from rfsdf.geometry import Grid, Sphere
 from rfsdf.jsonio import to_json
 from rfsdf.radar import read_measurements
-from rfsdf.field import RadarField
 from rfsdf.recon import CoherentRenderer
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from rfsdf.recon.primitive import PrimitiveField
@@ -90,15 +89,15 @@ def main() -> None:
             values = torch.cat([sdf(chunk.double()).float() for chunk in renderer.grid.points().split(1 << 16)])
         renderer.refresh(sdf, values, torch.Generator().manual_seed(0))
         anchors = renderer.candidates.anchors.double()
+        mine = scene.object_index(anchors) == k
         with torch.no_grad():
-            mine = torch.stack([obj.sdf(anchors) for obj in scene.objects]).abs().argmin(0) == k
             image = torch.cat([renderer(truth, views, chunk, geometry=False,
                                         probabilities=truth.material(anchors).float() * mine.float()[:, None])
                                for chunk in voxels.split(1 << 14)], 1)
         rows = glint_radii(anchors[mine].numpy(), centre, radius_m, towards)
         means = [float(np.sqrt(np.prod(row["radii_mm"]))) for row in rows if row and min(row["radii_mm"]) > 0]
-        return {"power": float((image.abs() ** 2).sum()), "view_powers": (image.abs() ** 2).sum(1).tolist(),
-                "views": rows,
+        view_powers = (image.abs() ** 2).sum(1)
+        return {"power": float(view_powers.sum()), "view_powers": view_powers.tolist(), "views": rows,
                 "mean_radius_mm": {"median": float(np.median(means)), "min": min(means), "max": max(means),
                                    "convex_views": len(means)},
                 "offset_mm_median": float(np.median([row["offset_mm"] for row in rows if row])),
