@@ -45,6 +45,7 @@ _CELLS_ACROSS = 3  # marching-cubes cells across an object's thinnest part, at l
 _MAX_SPLITS = 12  # rounds of splitting triangles in four (4096 x smaller edges at most)
 _THIN_QUANTILE = 0.1  # of the depths below an object's surface points: its thinnest part's half thickness
 _NEWTON_STEPS = 2  # projections p <- p - f grad f onto the exact zero set
+_CHORD_SAMPLES, _BISECTIONS = 96, 30  # along a line through an object, and to where it leaves it
 _CREASE_CELLS = 3  # a crease's triangles are refined to a third of the marching-cubes cell
 
 
@@ -405,7 +406,7 @@ class Scene:
     def thinnest_m(self, obj: SceneObject) -> float:
         """The thickness [m] of ``obj`` at its thinnest (a box's smallest edge, a shell's
         wall; inf for an object outside the bounds)."""
-        return 2 * _half_thickness(obj.sdf, self._near_points(obj, _COARSE_RESOLUTION))
+        return _thickness(obj.sdf, self._near_points(obj, _COARSE_RESOLUTION))
 
     def _mesh_of(self, obj: SceneObject, shape: ShapeSpec) -> trimesh.Trimesh:
         """A shell's own triangles (:func:`shell_mesh`), else
@@ -630,31 +631,39 @@ def _reading_text(obj: SceneObject, shape) -> str:
     return f"  {closed} surface {obj.reading.area_m2:.4g} m^2 read as a {reading}{thick}{radar}{box}"
 
 
-def _half_thickness(sdf, near: torch.Tensor) -> float:
-    """Half the thickness [m] of a solid at its thinnest: from points ``near`` (M, 3) [m] its
-    surface, projected onto it by Newton steps, the deepest that -f gets along -grad f
-    taken where the point was (a slab 2h thick: h; a point beside an edge projects onto
-    the edge, where the gradient is undefined), its ``_THIN_QUANTILE`` quantile over the
-    points (inf without points): near a rim every ray meets a side face soon, so the least
-    would call a 10 cm slab 1 cm thick (measured), while a thin part of an object covers
-    more than that share of its surface."""
+def _thickness(sdf, near: torch.Tensor) -> float:
+    """The thickness [m] of a solid at its thinnest: from points ``near`` (M, 3) [m] its surface,
+    projected onto it by Newton steps, the chord to where the line along -grad f (taken where
+    the point was) first leaves the solid (a slab's chord is its thickness, a
+    ball's its diameter), its ``_THIN_QUANTILE`` quantile over the points (inf without
+    points). The deepest -f along the line instead reads a face's depth near its rim (a side
+    face meets the line there) and called a 3 mm pane 0.35 mm thick, a 10 cm partition 4 cm."""
     if not len(near):
         return float("inf")
     # jittered off the grid they came from: a face in a grid plane (common in designed
-    # scenes) would send the rays from its rim along itself
-    spacing = float((near.max(0).values - near.min(0).values).max()) / _COARSE_RESOLUTION
+    # scenes) would send the lines from its rim along itself
+    extent = float((near.max(0).values - near.min(0).values).max())
     jitter = torch.rand(near.shape, generator=torch.Generator().manual_seed(0), dtype=torch.float64) - 0.5
-    p = near.double() + 0.5 * spacing * jitter
+    p = near.double() + 0.5 * extent / _COARSE_RESOLUTION * jitter
     inward = -torch.nn.functional.normalize(gradient(sdf, p), dim=1)
     for _ in range(_NEWTON_STEPS):
         g = gradient(sdf, p)
         p = p - (sdf(p) / (g * g).sum(1).clamp(min=1e-12))[:, None] * g
-    extent = float((near.max(0).values - near.min(0).values).max())
-    depths = torch.logspace(-5, np.log10(max(extent, 2e-5)), 48, dtype=torch.float64)
+    # the line sampled from just inside to twice the points' extent, the first sample outside
+    # bracketing the exit, which bisection finds: a line grazing a face (inside by t sin of a
+    # small angle) gains too little -f for steps of -f to reach the far side
+    t = torch.logspace(np.log10(1e-6 * max(extent, 1e-3)), np.log10(2 * max(extent, 1e-3)), _CHORD_SAMPLES,
+                       dtype=torch.float64)[:, None]  # (S, 1)
     with torch.no_grad():
-        deepest = torch.stack([-sdf(p + t * inward) for t in depths]).max(0).values
-    on_surface = deepest > 0  # a point Newton left off the surface sees no inside
-    return float(torch.quantile(deepest[on_surface], _THIN_QUANTILE)) if bool(on_surface.any()) else float("inf")
+        inside = torch.stack([sdf(p + ti * inward) < 0 for ti in t])  # (S, M)
+        entered = inside[0]  # a point Newton left off the surface sees no inside
+        first_out = (~inside).double().argmax(0).clamp(min=1)  # the first sample outside (none: the last)
+        low, high = t[first_out - 1, 0], t[first_out, 0]
+        for _ in range(_BISECTIONS):
+            middle = 0.5 * (low + high)
+            out = sdf(p + middle[:, None] * inward) >= 0
+            low, high = torch.where(out, low, middle), torch.where(out, middle, high)
+    return float(torch.quantile(high[entered], _THIN_QUANTILE)) if bool(entered.any()) else float("inf")
 
 
 def load_scene(name_or_path) -> Scene:
