@@ -126,7 +126,7 @@ class InitConfig(StrictModel):
     known_margin_m: NonNegativeFloat = 0.003
     # after the warm start, replace each of its fragments by the sphere, box, cylinder or torus
     # that explains the fragment's range peaks (recon.object_primitives), and regress the
-    # network onto that target (100 steps from the warm start's rate, decayed); needs the range peaks
+    # network onto that target (400 steps from the warm start's rate, decayed); needs the range peaks
     # (docs/results/demo-quality.md, "Primitives for the warm start's fragments"). False: as before
     primitives: bool = False
 

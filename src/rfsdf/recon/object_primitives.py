@@ -64,8 +64,11 @@ ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 0.02
 PIN_WEIGHT, PIN_TOLERANCE_M = 1.0, 1e-4
 # the regression's steps, its rate cosine-decayed from the warm start's: at a constant rate the
 # network stops wherever the last batches leave it (demo, seed 0, 300 steps: 1.62 and 2.01 mm
-# observed over two draws, the target 1.57); decayed, 1.55 and 1.53, and 1.50 in 100 steps
-REGRESSION_STEPS = 100
+# observed over two draws, the target 1.57); decayed, 1.55 and 1.53, and 1.50 in 100 steps. At
+# 100 the replaced sphere's glints stay flat (its power 1.70x the truth's, every material read
+# through a gain of 0.62); at 400, 1.24x and 0.85, the fits' surfaces where 100's end
+# (docs/results/demo-quality.md, "The regression's length and the materials")
+REGRESSION_STEPS = 400
 
 
 class FramedPrimitive(torch.nn.Module):
