@@ -653,7 +653,7 @@ def _thickness(sdf, near: torch.Tensor) -> float:
     # bracketing the exit, which bisection finds: a line grazing a face (inside by t sin of a
     # small angle) gains too little -f for steps of -f to reach the far side
     reach = max(extent, 1e-3)
-    t = torch.logspace(np.log10(1e-6 * reach), np.log10(2 * reach), _CHORD_SAMPLES, dtype=torch.float64)[:, None]  # (S, 1)
+    t = torch.logspace(np.log10(1e-6 * reach), np.log10(2 * reach), _CHORD_SAMPLES, dtype=torch.float64)[:, None]
     with torch.no_grad():
         inside = torch.stack([sdf(p + ti * inward) < 0 for ti in t])  # (S, M)
         entered = inside[0]  # a point Newton left off the surface sees no inside
