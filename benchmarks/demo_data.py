@@ -1,13 +1,18 @@
 """The default demo's data, as the benchmarks that analyse it need them: the scene, its
-simulated measurements (the demo's seed) and their matched-filter image on the demo grid."""
+simulated measurements (the demo's seed) and their matched-filter image on the demo grid;
+and the demo's warm start on them."""
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 
-from rfsdf.demo import DemoSettings
+from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.geometry import Grid
+from rfsdf.material_estimates import scene_reference
 from rfsdf.radar import Image, Measurements, load_radar, matched_filter, simulate
+from rfsdf.radar.clean import clean_image
+from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.scene import Scene, load_scene
 
 
@@ -31,3 +36,19 @@ def demo_data(settings: DemoSettings | None = None, device=None) -> DemoData:
                             stratified=settings.stratified_samples, surface=settings.surface, device=device)
     grid = Grid.from_voxel(scene.lower_m, scene.upper_m, settings.voxel_m)
     return DemoData(settings, scene, measurements, matched_filter(measurements, grid, device=device))
+
+
+def demo_warm_start(data: DemoData) -> tuple[Trainer, ReconConfig]:
+    """The warm start as ``rfsdf demo`` builds it on ``data`` (the default reconstruction, calibrated
+    by the scene's reference where it names one), on the CPU: the trainer after it (its
+    ``field`` and range ``peaks``; its run folder gone) and the config."""
+    scene, grid = data.scene, data.image.grid
+    config = with_scene_reference(ReconConfig(), scene, data.settings)
+    reference = (None if config.calibration.reference is None
+                 else scene_reference(scene, config.calibration, data.measurements.acquisition))
+    problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),
+                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
+    with tempfile.TemporaryDirectory() as run:
+        trainer = Trainer(problem, config, run)
+        trainer.warm_start()
+    return trainer, config

@@ -20,23 +20,19 @@ import argparse
 import copy
 import dataclasses
 import json
-import tempfile
 import time
 from functools import partial
 from pathlib import Path
 
 import torch
-from demo_data import demo_data
+from demo_data import demo_data, demo_warm_start
 from seeds import _scores
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
-from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.recon.object_primitives import (REGRESSION_STEPS, fit_fragment, fragments, free_space, primitive_target,
                                           regress_to_primitives)
 
@@ -54,15 +50,8 @@ def main() -> None:
     out = args.out or Path("benchmarks/results/" + ("primitive-start.json" if args.scene == DemoSettings.scene
                                                     else f"primitive-start-{Path(args.scene).stem}.json"))
     data = demo_data(settings)
-    scene, grid = data.scene, data.image.grid
-    config = with_scene_reference(ReconConfig(), scene, settings)
-    reference = (None if config.calibration.reference is None
-                 else scene_reference(scene, config.calibration, data.measurements.acquisition))
-    problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),
-                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
-    with tempfile.TemporaryDirectory() as run:
-        trainer = Trainer(problem, config, run)
-        trainer.warm_start()
+    scene = data.scene
+    trainer, config = demo_warm_start(data)
     warm = trainer.field.requires_grad_(False)
     points, _, _, towards = trainer.peaks
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points)
