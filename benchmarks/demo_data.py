@@ -40,8 +40,8 @@ def demo_data(settings: DemoSettings | None = None, device=None) -> DemoData:
 
 def demo_warm_start(data: DemoData) -> tuple[Trainer, ReconConfig]:
     """The warm start as ``rfsdf demo`` builds it on ``data`` (the default reconstruction, calibrated
-    by the scene's reference where it names one), on the CPU: the trainer after it (its
-    ``field`` and range ``peaks``; its run folder gone) and the config."""
+    by the scene's reference where it names one): the trainer after it (its ``field`` and range
+    ``peaks``; its run folder gone) and the config."""
     scene, grid = data.scene, data.image.grid
     config = with_scene_reference(ReconConfig(), scene, data.settings)
     reference = (None if config.calibration.reference is None
