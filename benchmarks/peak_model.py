@@ -30,21 +30,18 @@ import torch
 from demo_data import demo_data, demo_warm_start
 
 from rfsdf.demo import DemoSettings
+from rfsdf.geometry import sphere_trace
 from rfsdf.jsonio import write_json
 
 SURFACE_SPACING_M = 4e-4  # the true surface's samples [m]
-TRACE_STEPS, HIT_M = 400, 1e-5  # sphere tracing of the line model; a ray that ends farther than HIT_M missed
+TRACE_STEPS, HIT_M, TRACE_MAX_M = 400, 1e-5, 2.0  # sphere tracing of the line model: steps, hit tolerance, miss range [m]
 
 
 def line_ranges(scene, centres: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
     """(N,) range [m] where each ray (centres (N, 3), unit directions (N, 3)) first meets the
     scene's surface; NaN where it does not."""
-    s = torch.zeros(len(centres), dtype=torch.float64)
-    for _ in range(TRACE_STEPS):
-        f = scene.sdf(centres + s[:, None] * directions)
-        s = s + f.clamp(min=0.0)
-    missed = scene.sdf(centres + s[:, None] * directions).abs() > HIT_M
-    return torch.where(missed, torch.full_like(s, float("nan")), s)
+    trace = sphere_trace(scene.sdf, centres, directions, eps=HIT_M, max_steps=TRACE_STEPS, t_max=TRACE_MAX_M)
+    return torch.where(trace.hit, trace.t, torch.full_like(trace.t, float("nan")))
 
 
 def cone_ranges(surface: torch.Tensor, normals: torch.Tensor, centres: torch.Tensor, directions: torch.Tensor,
