@@ -8,7 +8,7 @@ target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of
 rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
 
-Usage: python benchmarks/primitive_start.py [--scene objects]
+Usage: python benchmarks/primitive_start.py [--scene objects] [--cone 0]
        [--regressions '[{"steps": 100, "lr_scale": 1, "decay": true}]']
        [--out benchmarks/results/primitive-start-SCENE.json]
        (~8 min on 2 cores; the demo's scene writes primitive-start.json)
@@ -20,6 +20,7 @@ import argparse
 import copy
 import dataclasses
 import json
+import math
 import time
 from functools import partial
 from pathlib import Path
@@ -33,6 +34,7 @@ from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.coverage import observed_mask
+from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (REGRESSION_STEPS, fit_fragment, fragments, free_space, primitive_target,
                                           regress_to_primitives)
 
@@ -44,6 +46,9 @@ def main() -> None:
                         default=[{"steps": REGRESSION_STEPS, "lr_scale": 1.0, "decay": True}],
                         help="[{steps, lr_scale[, decay, seed]}, ...]: the network's regressions onto the target "
                              "(by default `[init] primitives`' own)")
+    parser.add_argument("--cone", type=float, default=0.0,
+                        help="read the peaks as glints within this cone [deg] (`[init] peak_cone_deg`); "
+                             "0: on their lines")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     settings = dataclasses.replace(DemoSettings(), scene=args.scene)
@@ -54,7 +59,8 @@ def main() -> None:
     trainer, config = demo_warm_start(data)
     warm = trainer.field.requires_grad_(False)
     points, _, _, towards = trainer.peaks
-    labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points)
+    caps = glint_caps(points, towards, trainer.peak_ranges(), math.radians(args.cone)) if args.cone > 0 else None
+    labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
     free = free_space(points, towards, scene.lower_m, scene.upper_m)
     fits = []
     for piece in pieces:

@@ -7,6 +7,7 @@ import torch
 
 from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
+from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS,
                                           FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates, fit_fragment,
                                           fragments, free_space, primitive_surface, primitive_target)
@@ -152,3 +153,30 @@ def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
     assert (pins.double().norm(dim=1) - 0.02).abs().max() < 1e-6  # on the sphere
     assert (pins[:, 0] > -1e-4).all()  # none where the box covers it
     assert (pins[:, 0] > 0.01).sum() > len(pins) / 4  # and the free half kept
+
+
+def test_peaks_read_as_glints_give_a_ball_its_radius():
+    """Three views 0.3 m from a 25 mm ball, each with peaks at its glint's range on lines up to 0.8
+    degrees off the ball's centre (the array's main lobe): read on their lines they stand up to
+    0.3 mm outside the ball and swell its sphere (by 0.07 mm, the true warm surface holding it);
+    read on glint caps within 1 degree of their lines (Fragment.caps, recon.glints) they give the
+    radius to 0.01 mm."""
+    generator = torch.Generator().manual_seed(4)
+    views = torch.nn.functional.normalize(torch.tensor([[1.0, 0.2, 0.1], [-0.2, 1.0, 0.3], [0.1, -0.3, 1.0]],
+                                                       dtype=torch.float64), dim=1)
+    centres = 0.3 * views.repeat_interleave(40, 0)
+    axis = -views.repeat_interleave(40, 0)
+    across = torch.nn.functional.normalize(torch.linalg.cross(axis, torch.randn(120, 3, generator=generator,
+                                                                                dtype=torch.float64)), dim=1)
+    off = torch.deg2rad(0.8 * torch.rand(120, 1, generator=generator, dtype=torch.float64).sqrt())
+    line = torch.cos(off) * axis + torch.sin(off) * across
+    peaks, towards = centres + (0.3 - 0.025) * line, -line
+    ranges = torch.full((120,), 0.3 - 0.025, dtype=torch.float64)
+    warm = _on(lambda p: p.norm(dim=1) - 0.025, 400, seed=2)
+    free = free_space(peaks, towards, [-0.2] * 3, [0.2] * 3)
+    radius = {}
+    for caps in (None, glint_caps(peaks, towards, ranges, math.radians(1.0), rings=4)):
+        fit = fit_fragment(Fragment(1, peaks, warm, caps), free)
+        assert fit.primitive.kind == "sphere" and fit.explains
+        radius[caps is None] = float(fit.primitive.log_sizes.detach().exp()[0])
+    assert abs(radius[False] - 0.025) < 1e-5 < 5e-5 < radius[True] - 0.025, radius

@@ -613,23 +613,31 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
 
 def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(sphere_data, tmp_path, monkeypatch):
     """``[init] primitives`` (off by default) runs primitive_start on the warm start's field
-    with its range peaks and the directions towards their views."""
+    with its range peaks and the directions towards their views; with ``peak_cone_deg`` each
+    peak's glint cap too, on the sphere of its range (its distance from its view's centre)."""
     import rfsdf.recon.trainer as trainer_module
 
     _, data = sphere_data
     seen = {}
     monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: None)
-    monkeypatch.setattr(trainer_module, "primitive_start",
-                        lambda field, points, towards, *a, **kw: seen.update(points=points, towards=towards) or ["fit"])
-    for on in (False, True):
+    monkeypatch.setattr(trainer_module, "primitive_start", lambda field, points, towards, *a, caps=None, **kw:
+                        seen.update(points=points, towards=towards, caps=caps) or ["fit"])
+    for on, cone in ((False, 0.0), (True, 0.0), (True, 0.5)):
         settings = _config(steps=2).model_dump()
-        settings["init"].update(method="mf", threshold=0.05, primitives=on)
-        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{on}")
+        settings["init"].update(method="mf", threshold=0.05, primitives=on, peak_cone_deg=cone)
+        trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{on}{cone}")
         trainer.warm_start()
         assert (trainer.primitive_fits == ["fit"]) is on and (seen != {}) is on
+        assert (seen.get("caps") is not None) is (cone > 0)
     torch.testing.assert_close(seen["points"], trainer.peaks[0])
     torch.testing.assert_close(seen["towards"], trainer.peaks[3])
-    assert ReconConfig().init.primitives is False
+    centres = data.acquisition.view_centres()[0].to(trainer.peaks[0])[trainer.peaks[2]]
+    ranges = (seen["points"] - centres).norm(dim=1)
+    torch.testing.assert_close(trainer.peak_ranges(), ranges)
+    assert seen["caps"].shape == (len(ranges), 19, 3)  # two rings about each peak
+    torch.testing.assert_close((seen["caps"] - centres[:, None]).norm(dim=2), ranges[:, None].expand(-1, 19))
+    torch.testing.assert_close(seen["caps"][:, 0], seen["points"])
+    assert ReconConfig().init.primitives is False and ReconConfig().init.peak_cone_deg == 0
 
 def _known(*objects) -> Scene:
     return Scene(SceneSpec.model_validate({"name": "known", "bounds": {"lower_m": [-0.1] * 3, "upper_m": [0.1] * 3},

@@ -112,6 +112,12 @@ class InitConfig(StrictModel):
     # (RangePeaks.apexes); the peaks beside it stand on its tangent plane, and a normal turned
     # there too flattens a curved glint (a metal ball's read 2.4x too bright); 0: every peak
     peak_apex_m: NonNegativeFloat = 0.012
+    # the primitives (``primitives``) read each range peak as a glint (recon.glints): the sphere
+    # of its range about its view's centre touches the surface within this cone [deg] about its
+    # line; 0: the surface crosses the line at the peak. On the true surfaces the demo's peaks
+    # stand 0.55 mm off their lines' (median), 0.03 mm off the 0.25-degree caps'
+    # (benchmarks/peak_model.py); a planar scan's parallel lines keep 0
+    peak_cone_deg: float = Field(0.0, ge=0, le=5)
     # leave out of the range peaks, and of the detection where no view sees more, what a
     # view's glints explain in its own image as their sidelobes (range and lateral:
     # radar.glint_sidelobes): a metal ball's had held a lump 4 mm outside its far side, and

@@ -9,7 +9,8 @@ flat faces. So each connected piece of the warm start's interior (a *fragment*: 
 the part of one the views saw) is fitted by each primitive in turn, in a local frame (a centre,
 a rotation vector and log sizes, all differentiable), by Adam on three terms:
 
-- the range peaks in the fragment lie on the surface (a Huber loss of f there, 1 mm knee);
+- the range peaks in the fragment lie on the surface (a Huber loss of f there, 1 mm knee; read
+  as glints, ``[init] peak_cone_deg``, of the least f over each one's cap, recon/glints.py);
 - the warm start's own surface near the fragment lies on it too, weakly (``SURFACE_WEIGHT``):
   it bounds the extents the peaks leave open;
 - every peak's line of sight, from 4 mm in front of the peak to 20 cm towards its view, is
@@ -37,6 +38,7 @@ from scipy.spatial import cKDTree
 from .. import geometry as geo
 from ..geometry import Grid, interpolated_sdf, project_to_zero_set
 from ..progress import progress_bar
+from .glints import cap_minimum
 from .warm_start import fit_to_image
 
 __all__ = ["PRIMITIVE_KINDS", "FramedPrimitive", "Fragment", "FragmentFit", "candidates", "fragments", "free_space",
@@ -144,11 +146,18 @@ def candidates(points: np.ndarray) -> list[FramedPrimitive]:
 @dataclass(frozen=True)
 class Fragment:
     """A connected piece of the warm start's interior: its ``label`` on the labelled grid, its
-    range ``peaks`` (P, 3) and its warm ``surface`` points (S, 3) [m], float64."""
+    range ``peaks`` (P, 3) and its warm ``surface`` points (S, 3) [m], float64; with ``caps``
+    (P, K, 3) [m], each peak's glint cap (:func:`~rfsdf.recon.glints.glint_caps`): a peak lies on
+    a surface where the least f over its cap is 0 (None: f at the peak itself)."""
 
     label: int
     peaks: torch.Tensor
     surface: torch.Tensor
+    caps: torch.Tensor | None = None
+
+    def gaps(self, sdf) -> torch.Tensor:
+        """(P,) the least ``sdf`` over each peak's cap [m] (:func:`~rfsdf.recon.glints.glint_gap`)."""
+        return cap_minimum(sdf, self.peaks[:, None] if self.caps is None else self.caps)
 
 
 @dataclass(frozen=True)
@@ -170,10 +179,12 @@ class FragmentFit:
                 and self.carved < ACCEPT_CARVED)
 
 
-def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor) -> tuple[np.ndarray, Grid, list[Fragment]]:
+def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor,
+              caps: torch.Tensor | None = None) -> tuple[np.ndarray, Grid, list[Fragment]]:
     """The labelled interior of ``sdf`` (float32 points -> f [m]) on a ``FRAGMENT_VOXEL_M`` grid
     over the box, that grid, and its fragments of at least ``MIN_FRAGMENT_M3``, each with the
-    ``peaks`` (P, 3) [m] and the zero-set points within ``OWNER_REACH_M`` of its voxels."""
+    ``peaks`` (P, 3) [m] (and their ``caps`` (P, K, 3), see :class:`Fragment`) and the zero-set
+    points within ``OWNER_REACH_M`` of its voxels."""
     grid = Grid.from_voxel(lower_m, upper_m, FRAGMENT_VOXEL_M)
     points = grid.points()
     with torch.no_grad():
@@ -191,8 +202,9 @@ def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor) -> tuple[np.ndarray, G
         return torch.from_numpy(owners[voxels.query(x.numpy(), distance_upper_bound=OWNER_REACH_M)[1]])
 
     surface_owner, peak_owner = owner(surface), owner(peaks)
-    return labels, grid, [Fragment(label, peaks[peak_owner == label], surface[surface_owner == label])
-                          for label in kept]
+    caps = None if caps is None else caps.double()
+    return labels, grid, [Fragment(label, peaks[peak_owner == label], surface[surface_owner == label],
+                                   None if caps is None else caps[peak_owner == label]) for label in kept]
 
 
 def free_space(points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m) -> torch.Tensor:
@@ -211,18 +223,19 @@ def _huber(values: torch.Tensor) -> torch.Tensor:
 @dataclass(frozen=True)
 class _Evidence:
     """A fragment's points for the loss, in one tensor (N, 3) float64 [m] so that a primitive is
-    evaluated once a step: its warm surface points, then its peaks, then the free-space samples
-    near it; ``counts`` of each."""
+    evaluated once a step: its warm surface points, then its peaks' caps (``cap`` samples each),
+    then the free-space samples near it; ``counts`` of each."""
 
     points: torch.Tensor
     counts: tuple[int, int, int]
+    cap: int = 1
 
     def loss(self, primitive: FramedPrimitive) -> torch.Tensor:
         """The module docstring's three terms."""
-        surface, peaks, free = primitive(self.points).split(self.counts)
+        surface, caps, free = primitive(self.points).split(self.counts)
         loss = SURFACE_WEIGHT * _huber(surface)
-        if len(peaks):
-            loss = loss + _huber(peaks)
+        if len(caps):
+            loss = loss + _huber(caps.reshape(-1, self.cap).min(1).values)
         if len(free):
             loss = loss + FREE_WEIGHT * torch.relu(-free - FREE_MARGIN_M).mean()
         return loss
@@ -249,7 +262,9 @@ def fit_fragment(fragment: Fragment, free: torch.Tensor, *, steps: int = FIT_STE
     points = torch.cat([fragment.surface, fragment.peaks])
     reach = ((free > points.min(0).values - FREE_REACH_M) & (free < points.max(0).values + FREE_REACH_M)).all(1)
     free = free[reach]  # the lines of sight a primitive near these points could cross
-    evidence = _Evidence(torch.cat([points, free]), (len(fragment.surface), len(fragment.peaks), len(free)))
+    caps = fragment.peaks[:, None] if fragment.caps is None else fragment.caps
+    evidence = _Evidence(torch.cat([fragment.surface, caps.reshape(-1, 3), free]),
+                         (len(fragment.surface), caps.shape[0] * caps.shape[1], len(free)), caps.shape[1])
     starts = candidates(points.numpy())
     optimizer = torch.optim.Adam([group for primitive in starts for group in (
         {"params": [primitive.centre], "lr": lr}, {"params": [primitive.rotation], "lr": ROTATION_LR_SCALE * lr},
@@ -260,7 +275,7 @@ def fit_fragment(fragment: Fragment, free: torch.Tensor, *, steps: int = FIT_STE
     losses = _descend(survivors, optimizer, schedule, steps - steps // 3, evidence)
     loss, primitive = min(zip(losses, survivors), key=lambda run: run[0])
     with torch.no_grad():
-        at_peaks = primitive(fragment.peaks).abs() if len(fragment.peaks) else torch.full((1,), torch.inf)
+        at_peaks = fragment.gaps(primitive).abs() if len(fragment.peaks) else torch.full((1,), torch.inf)
         carved = float((primitive(free) < -1e-3).double().mean()) if len(free) else 0.0
     return FragmentFit(fragment, primitive, loss, float(at_peaks.median()), float((at_peaks < 1e-3).double().mean()),
                        carved)
@@ -316,13 +331,14 @@ def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid
 
 def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m, *, lr: float, batch: int,
                     eikonal_weight: float, near_share: float, generator: torch.Generator,
-                    progress: bool = False) -> list[FragmentFit]:
+                    caps: torch.Tensor | None = None, progress: bool = False) -> list[FragmentFit]:
     """Fit every fragment of ``field``'s surface (the range peaks ``points`` (N, 3) [m], unit
-    directions ``towards`` their views (N, 3)) and, where a primitive explains its fragment,
+    directions ``towards`` their views (N, 3), and their glint ``caps`` (N, K, 3) [m] where they
+    are read as glints, see :class:`Fragment`) and, where a primitive explains its fragment,
     :func:`regress_to_primitives` (``REGRESSION_STEPS`` from ``lr``, decayed). Returns the fits,
     each with whether it replaced its fragment."""
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
-    labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points)
+    labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points, caps)
     free = free_space(points, towards, lower_m, upper_m)
     fits = [fit_fragment(piece, free) for piece in progress_bar(pieces, desc="primitives", enabled=progress)]
     chosen = [fit for fit in fits if fit.explains]

@@ -15,6 +15,7 @@ and leaves the last good checkpoint in place.
 from __future__ import annotations
 
 import hashlib
+import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
+from .glints import glint_caps
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
 from .object_primitives import primitive_start
@@ -190,6 +192,7 @@ class Trainer:
         # unit vectors (N, 3) along which each was found (radar.range_peaks.RangePeaks)
         self.peaks: tuple[torch.Tensor, ...] | None = None
         self._peak_lines: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None  # see peak_lines()
+        self._peak_ranges: torch.Tensor | None = None  # see peak_ranges()
         self.primitive_fits: list | None = None  # the fragments' primitives, with init.primitives
 
     # Checkpoints -------------------------------------------------------------------------
@@ -283,10 +286,14 @@ class Trainer:
                    bending_step_m=self.config.loss.bending_step_m,
                    generator=self.generator, progress=self.progress)
         if ic.primitives and self.peaks is not None:
+            caps = None
+            if ic.peak_cone_deg > 0:
+                caps = glint_caps(self.peaks[0].cpu(), self.peaks[3].cpu(), self.peak_ranges().cpu(),
+                                  math.radians(ic.peak_cone_deg))
             self.primitive_fits = primitive_start(
                 self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, lr=ic.lr,
-                batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share,
-                generator=self.generator, progress=self.progress)
+                batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share, generator=self.generator,
+                caps=caps, progress=self.progress)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:
@@ -380,6 +387,18 @@ class Trainer:
                 line_predicted, observed_lines[index], offsets, self.peaks[1][index], PEAK_MATCH_SCALE_M)
             terms["loss"] = terms["loss"] + terms["peak_match"]
         return terms
+
+    def peak_ranges(self) -> torch.Tensor:
+        """(N,) each range peak's distance [m] from its view's centre, the radius of the sphere
+        :func:`~rfsdf.recon.glints.glint_gap` holds it on; 0 where the views are planar scans
+        (their lines are parallel, not a cone's: f at the peak)."""
+        if self._peak_ranges is None:
+            points, _, view, _ = self.peaks
+            acquisition = self.problem.measurements.acquisition
+            centres = acquisition.view_centres()[0].to(points)
+            scanned = acquisition.scans is not None
+            self._peak_ranges = (points - centres[view]).norm(dim=1) * (0.0 if scanned else 1.0)
+        return self._peak_ranges
 
     def peak_lines(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Each range peak's line of sight, sampled at ``PEAK_MATCH_SAMPLES`` offsets (S,) [m]
