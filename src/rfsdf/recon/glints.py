@@ -32,7 +32,8 @@ __all__ = ["cap_directions", "glint_caps", "cap_minimum", "glint_gap"]
 
 def cap_directions(cone_rad: float, rings: int) -> torch.Tensor:
     """(K, 2) float64 (polar angle [rad] from the axis, azimuth [rad]) of a cap's samples: the
-    axis, then ring j = 1..``rings`` at j * cone / rings with 6 j directions, staggered."""
+    axis, then ring j = 1..``rings`` at j * cone / rings with 6 j directions, the first ring's
+    from azimuth 0 and each even ring's turned by half its step; K = 1 + 3 rings (rings + 1)."""
     rows = [(0.0, 0.0)]
     for j in range(1, rings + 1 if cone_rad > 0 else 1):
         rows += [(j * cone_rad / rings, 2 * math.pi * (k + 0.5 * (1 - j % 2)) / (6 * j)) for k in range(6 * j)]
