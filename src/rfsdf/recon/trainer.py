@@ -192,7 +192,6 @@ class Trainer:
         # unit vectors (N, 3) along which each was found (radar.range_peaks.RangePeaks)
         self.peaks: tuple[torch.Tensor, ...] | None = None
         self._peak_lines: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None  # see peak_lines()
-        self._peak_ranges: torch.Tensor | None = None  # see peak_ranges()
         self.primitive_fits: list | None = None  # the fragments' primitives, with init.primitives
 
     # Checkpoints -------------------------------------------------------------------------
@@ -392,13 +391,10 @@ class Trainer:
         """(N,) each range peak's distance [m] from its view's centre, the radius of the sphere
         :func:`~rfsdf.recon.glints.glint_gap` holds it on; 0 where the views are planar scans
         (their lines are parallel, not a cone's: f at the peak)."""
-        if self._peak_ranges is None:
-            points, _, view, _ = self.peaks
-            acquisition = self.problem.measurements.acquisition
-            centres = acquisition.view_centres()[0].to(points)
-            scanned = acquisition.scans is not None
-            self._peak_ranges = (points - centres[view]).norm(dim=1) * (0.0 if scanned else 1.0)
-        return self._peak_ranges
+        points, _, view, _ = self.peaks
+        acquisition = self.problem.measurements.acquisition
+        centres = acquisition.view_centres()[0].to(points)
+        return (points - centres[view]).norm(dim=1) * (0.0 if acquisition.scans is not None else 1.0)
 
     def peak_lines(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Each range peak's line of sight, sampled at ``PEAK_MATCH_SAMPLES`` offsets (S,) [m]
