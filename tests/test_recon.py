@@ -725,6 +725,41 @@ def test_the_fit_holds_its_zero_set_through_the_warm_starts_range_peaks(sphere_d
     assert all(torch.equal(a, b) for a, b in zip(resumed.peaks, peaks))
 
 
+def test_the_fit_can_hold_its_range_peaks_as_glints(sphere_data, tmp_path):
+    """``[loss] peak_cone_deg``: the held term is the amplitude-weighted mean |least f| over
+    each peak's glint cap (``glint_gap`` on the sphere of its range about its view's centre);
+    a planar scan's peaks have no range to read, so their caps are the peaks themselves."""
+    from rfsdf.radar import Measurements
+    from rfsdf.recon.glints import glint_gap
+
+    _, data = sphere_data
+    centres = data.acquisition.view_centres()[0].float()
+    view = torch.arange(12) % data.acquisition.num_views
+    towards = torch.nn.functional.normalize(centres[view], dim=1)  # lines through the ball's centre
+    points = 0.9 * RADIUS * towards + 0.002 * torch.randn(12, 3, generator=torch.Generator().manual_seed(0))
+    amplitude = torch.linspace(0.2, 1.0, 12)
+    settings = _config(steps=2, geometry_delay=0.0).model_dump()
+    settings["loss"].update(peak_weight=1000.0, peak_cone_deg=0.5)
+    trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / "glints")
+    trainer.peaks = (points, amplitude, view, towards)
+    trainer.refresh_surface()
+    terms = trainer.loss_terms()
+    ranges = (points - centres[view]).norm(dim=1)
+    with torch.no_grad():
+        gaps = glint_gap(trainer.field.sdf, points, towards, ranges, math.radians(0.5))
+        on_lines = trainer.field.sdf(points)
+    assert float(terms["peaks"].detach()) == pytest.approx(1000.0 * float((gaps.abs() * amplitude).sum()
+                                                                          / amplitude.sum()), rel=1e-5)
+    assert (gaps <= on_lines + 1e-7).all() and (gaps < on_lines - 1e-5).any()  # the least f over a cap
+    assert trainer.peak_caps(0.0) is None and ReconConfig().loss.peak_cone_deg == 0
+    scanned = dataclasses.replace(data.acquisition, scans=torch.zeros(data.acquisition.shape[0], dtype=torch.int64))
+    trainer = Trainer(Problem(Measurements(scanned, data.data), _grid(10)), ReconConfig.model_validate(settings),
+                      tmp_path / "scanned")
+    trainer.peaks = (points, amplitude, torch.zeros(12, dtype=torch.int64), towards)
+    assert (trainer.peak_ranges() == 0).all()
+    torch.testing.assert_close(trainer.peak_caps(0.5), points[:, None].expand(-1, 19, -1))
+
+
 def test_the_warm_start_can_blank_sidelobes_of_the_matched_filter_beside_cleans(sphere_data, tmp_path, monkeypatch):
     """``[init] sidelobes_in_mf`` with the CLEAN method: what is a range sidelobe (within
     ``sidelobe_reach``, under ``sidelobe_level``) in the matched filter's per-view images is

@@ -218,6 +218,11 @@ class LossConfig(StrictModel):
     # the seen faces to 1.1 mm, finer than the pooled amplitude loss sees; docs/results/
     # demo-quality.md, "The peaks held in the fit"); 0 leaves them to the warm start
     peak_weight: NonNegativeFloat = 1000.0
+    # hold each peak as a glint (recon/glints.py; ``[init] peak_cone_deg``): the least f over
+    # its range sphere's cap within this cone [deg] of its line, not f at the peak; 0: on the
+    # line. With the primitives read so the demo's ball keeps its sphere (0.36 mm, held on the
+    # lines 0.76); from the default warm start the fit ends further off (docs/results/demo-quality.md)
+    peak_cone_deg: float = Field(0.0, ge=0, le=5)
     # move the predicted images' range peaks onto the data's, along the lines of sight of the
     # warm start's range peaks, while the geometry moves: this times the mean pseudo-Huber
     # misfit of their positions (in mm, knee 1 mm; recon/losses.py, peak_match_loss); each

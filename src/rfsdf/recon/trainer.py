@@ -38,7 +38,7 @@ from ..radar.specular import specular_normals
 from ..scene import Scene
 from .checkpoint import CHECKPOINT_NAME, read_checkpoint, save_checkpoint, write_config, write_log
 from .config import ReconConfig
-from .glints import glint_caps
+from .glints import cap_minimum, glint_caps
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
 from .object_primitives import primitive_start
@@ -285,14 +285,11 @@ class Trainer:
                    bending_step_m=self.config.loss.bending_step_m,
                    generator=self.generator, progress=self.progress)
         if ic.primitives and self.peaks is not None:
-            caps = None
-            if ic.peak_cone_deg > 0:
-                caps = glint_caps(self.peaks[0].cpu(), self.peaks[3].cpu(), self.peak_ranges().cpu(),
-                                  math.radians(ic.peak_cone_deg))
+            caps = self.peak_caps(ic.peak_cone_deg)
             self.primitive_fits = primitive_start(
                 self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, lr=ic.lr,
                 batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share, generator=self.generator,
-                caps=caps, progress=self.progress)
+                caps=None if caps is None else caps.cpu(), progress=self.progress)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:
@@ -368,7 +365,9 @@ class Trainer:
         terms["loss"] = data + cfg.loss.eikonal_weight * eikonal + terms.get("material", 0.0)
         if not frozen and cfg.loss.peak_weight > 0 and self.peaks is not None:
             points, amplitude = self.peaks[:2]
-            held = (self.field.sdf(points).abs() * amplitude).sum() / amplitude.sum()
+            caps = self.peak_caps(cfg.loss.peak_cone_deg)
+            gaps = self.field.sdf(points) if caps is None else cap_minimum(self.field.sdf, caps)
+            held = (gaps.abs() * amplitude).sum() / amplitude.sum()
             terms["peaks"] = cfg.loss.peak_weight * held
             terms["loss"] = terms["loss"] + terms["peaks"]
         if not frozen and cfg.loss.bending_weight > 0:
@@ -395,6 +394,15 @@ class Trainer:
         acquisition = self.problem.measurements.acquisition
         centres = acquisition.view_centres()[0].to(points)
         return (points - centres[view]).norm(dim=1) * (0.0 if acquisition.scans is not None else 1.0)
+
+    def peak_caps(self, cone_deg: float) -> torch.Tensor | None:
+        """(N, K, 3) each range peak's glint cap [m] within ``cone_deg`` [deg] of its line
+        (:func:`~rfsdf.recon.glints.glint_caps` at :meth:`peak_ranges`), on the fit's device;
+        None for a cone of 0 (the peaks read as points on their lines)."""
+        if cone_deg <= 0:
+            return None
+        points, _, _, towards = self.peaks
+        return glint_caps(points, towards, self.peak_ranges(), math.radians(cone_deg))
 
     def peak_lines(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Each range peak's line of sight, sampled at ``PEAK_MATCH_SAMPLES`` offsets (S,) [m]
