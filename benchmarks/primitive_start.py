@@ -2,7 +2,9 @@
 start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
-replaces the fragment; then the warm start and the target (`primitive_target`) scored as the
+replaces the fragment, the warm start's own median |f| over the same peaks, and over the warm
+surface the views saw (within 6 mm of its peaks) how far the primitive lies from it and which of
+the two the truth is nearer to; then the warm start and the target (`primitive_target`) scored as the
 demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
 target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of the warm start's
 rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
@@ -20,7 +22,6 @@ import argparse
 import copy
 import dataclasses
 import json
-import math
 import time
 from functools import partial
 from pathlib import Path
@@ -30,13 +31,32 @@ from demo_data import demo_data, demo_warm_start
 from seeds import _scores
 
 from rfsdf.demo import DemoSettings
+from rfsdf.geometry import project_to_zero_set
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (REGRESSION_STEPS, fit_fragment, fragments, free_space, primitive_target,
                                           regress_to_primitives)
+
+
+def _seen_agreement(fit, scene, reach_m: float = 0.006) -> dict:
+    """Over the fragment's warm surface within ``reach_m`` of its peaks (the part the views saw):
+    the median |f| of its primitive there [mm], and the median distance to the true surface of
+    those points and of their projections onto the primitive [mm] (which of the two is nearer)."""
+    surface = fit.fragment.surface
+    if not len(surface) or not len(fit.fragment.peaks):
+        return {}
+    seen = surface[torch.cdist(surface, fit.fragment.peaks).min(1).values < reach_m]
+    if not len(seen):
+        return {}
+    with torch.no_grad():
+        agreement = fit.primitive(seen).abs().median()
+    projected = project_to_zero_set(fit.primitive, seen)
+    with torch.no_grad():
+        truth = [scene.sdf(x).abs().median() for x in (seen, projected)]
+    return {"seen_points": len(seen), "seen_agreement_mm": float(agreement) * 1e3,
+            "seen_warm_truth_mm": float(truth[0]) * 1e3, "seen_primitive_truth_mm": float(truth[1]) * 1e3}
 
 
 def main() -> None:
@@ -59,7 +79,7 @@ def main() -> None:
     trainer, config = demo_warm_start(data)
     warm = trainer.field.requires_grad_(False)
     points, _, _, towards = trainer.peaks
-    caps = glint_caps(points, towards, trainer.peak_ranges(), math.radians(args.cone)) if args.cone > 0 else None
+    caps = trainer.peak_caps(args.cone)
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
     free = free_space(points, towards, scene.lower_m, scene.upper_m)
     fits = []
@@ -73,7 +93,10 @@ def main() -> None:
             nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
         rows.append({"object": names[int(nearest.mode().values)], "peaks": len(fit.fragment.peaks),
                      **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
-                     "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains})
+                     "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains,
+                     "warm_peaks_median_mm": float(fit.fragment.gaps(lambda x: warm.sdf(x.float()).double())
+                                                   .abs().median()) * 1e3 if len(fit.fragment.peaks) else None,
+                     **_seen_agreement(fit, scene)})
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
 

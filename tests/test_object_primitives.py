@@ -8,9 +8,10 @@ import torch
 from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
-from rfsdf.recon.object_primitives import (FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS,
-                                          FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates, fit_fragment,
-                                          fragments, free_space, primitive_surface, primitive_target)
+from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE,
+                                          SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence,
+                                          candidates, fit_fragment, fragments, free_space, primitive_surface,
+                                          primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -140,6 +141,28 @@ def test_the_target_replaces_the_explained_fragments_only():
     assert target(near_ball).abs().max() < 1e-4  # the sphere's surface, not the lumps'
     torch.testing.assert_close(target(near_box), warm(near_box))
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
+
+
+def test_a_primitive_nearer_the_glints_than_the_warm_start_replaces_it():
+    """Read as glints, each fragment carries the warm start's median |least f| over its peaks'
+    caps; a primitive whose own median is below it and below ``ACCEPT_BETTER_M`` replaces the
+    fragment though fewer than ``ACCEPT_WITHIN`` of its peaks lie within 1 mm, unless it carves."""
+    warm = lambda p: (p.norm(dim=1) - 0.0215).to(p.dtype)  # noqa: E731  (1.5 mm too large)
+    directions = torch.nn.functional.normalize(torch.randn(60, 3, generator=torch.Generator().manual_seed(3),
+                                                           dtype=torch.float64), dim=1)
+    peaks = 0.02 * directions
+    caps = glint_caps(peaks, directions, torch.full((60,), 0.3, dtype=torch.float64), math.radians(0.25))
+    (piece,) = fragments(warm, [-0.05] * 3, [0.05] * 3, peaks, caps)[2]
+    assert piece.warm_median_m == pytest.approx(1.5e-3, abs=2e-5)
+    assert fragments(warm, [-0.05] * 3, [0.05] * 3, peaks)[2][0].warm_median_m == 0  # on the lines: not read
+    ball = FramedPrimitive("sphere", [0.0, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
+    for median, within, carved, warm_median, explains in (
+            (0.8e-3, 0.5, 0.0, 1.5e-3, True), (0.8e-3, 0.5, 0.0, 0.7e-3, False),
+            (1.1e-3, 0.3, 0.0, 1.5e-3, False), (0.8e-3, 0.5, 0.05, 1.5e-3, False),
+            (0.5e-3, 0.8, 0.0, 0.4e-3, True)):
+        fragment = Fragment(1, peaks, piece.surface, caps, warm_median)
+        assert FragmentFit(fragment, ball, 0.0, median, within, carved).explains is explains
+    assert ACCEPT_BETTER_M > ACCEPT_MEDIAN_M
 
 
 def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
