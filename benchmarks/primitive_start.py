@@ -2,10 +2,10 @@
 start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
-replaces the fragment, the warm start's own median |f| over the same peaks, and over the warm
-surface the views saw (within 6 mm of its peaks) how far the primitive lies from it and which of
-the two the truth is nearer to; then the warm start and the target (`primitive_target`) scored as the
-demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
+replaces the fragment, the warm start's own median |f| over the same peaks (read as glints), and
+over the warm surface the views saw (within 6 mm of its peaks) how far the primitive lies from it
+and which of the two the truth is nearer to; then the warm start and the target
+(`primitive_target`) scored as the demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
 target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of the warm start's
 rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
@@ -94,8 +94,7 @@ def main() -> None:
         rows.append({"object": names[int(nearest.mode().values)], "peaks": len(fit.fragment.peaks),
                      **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
                      "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains,
-                     "warm_peaks_median_mm": float(fit.fragment.gaps(lambda x: warm.sdf(x.float()).double())
-                                                   .abs().median()) * 1e3 if len(fit.fragment.peaks) else None,
+                     "warm_peaks_median_mm": fit.fragment.warm_median_m * 1e3,
                      **_seen_agreement(fit, scene)})
     score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))

@@ -20,10 +20,11 @@ The lowest loss wins. It replaces its fragment where it *explains* the fragment'
 median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm; or, with
 the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below the warm start's own:
 a better account of them than the surface it replaces) and hardly carves the lines of sight
-(fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new
-target is the warm start with the replaced fragments cut out, united with their primitives; the
-network is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate
-decayed to zero so that it ends where the target is, not where the last batches left it.
+(fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside);
+elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new target is
+the warm start with the replaced fragments cut out, united with their primitives; the network
+is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate decayed
+to zero so that it ends where the target is, not where the last batches left it.
 """
 
 from __future__ import annotations
