@@ -1,7 +1,7 @@
 """What `[init] primitives` makes of a scene's warm start (the demo's by default). The warm
 start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
-(`fit_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
+(`explain_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
 replaces the fragment, the warm start's own median |f| over the same peaks (read as glints), and
 over the warm surface the views saw (within 6 mm of its peaks) how far the primitive lies from it
 and which of the two the truth is nearer to; then the warm start and the target
@@ -36,7 +36,7 @@ from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon.object_primitives import (REGRESSION_STEPS, fit_fragment, fragments, free_space, primitive_target,
+from rfsdf.recon.object_primitives import (REGRESSION_STEPS, explain_fragment, fragments, free_space, primitive_target,
                                           regress_to_primitives)
 
 
@@ -84,7 +84,7 @@ def main() -> None:
     free = free_space(points, towards, scene.lower_m, scene.upper_m)
     fits = []
     for piece in pieces:
-        fits.append(fit_fragment(piece, free))
+        fits.append(explain_fragment(piece, free))
         print(fits[-1].primitive.kind, f"{fits[-1].peaks_median_m * 1e3:.2f} mm", fits[-1].explains, flush=True)
     names = [o.name for o in scene.objects]
     rows = []

@@ -10,8 +10,8 @@ from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE,
                                           SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence,
-                                          candidates, fit_fragment, fragments, free_space, primitive_surface,
-                                          primitive_target)
+                                          candidates, explain_fragment, fit_fragment, fragments, free_space,
+                                          primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -26,6 +26,7 @@ def _turned(shape: geo.SDF) -> geo.SDF:
     ("sphere", [0.02], geo.Sphere(0.02)),
     ("box", [0.03, 0.02, 0.01], geo.Box([0.03, 0.02, 0.01])),
     ("cylinder", [0.015, 0.03], geo.CappedCylinder(0.015, 0.06)),
+    ("capsule", [0.012, 0.02], geo.Capsule([0, 0, -0.02], [0, 0, 0.02], 0.012)),
     ("torus", [0.03, 0.01], geo.Torus(0.03, 0.01)),
 ])
 def test_a_framed_primitive_is_the_library_shape_turned_and_moved(kind, sizes, reference):
@@ -51,26 +52,49 @@ def _seen_from(truth, views: torch.Tensor, count: int = 200) -> tuple[torch.Tens
     return points[keep], views[view[keep]]
 
 
-@pytest.mark.parametrize("kind, sizes, reference", [
-    ("box", [0.03, 0.02, 0.015], geo.Box([0.03, 0.02, 0.015])),
-    ("sphere", [0.025], geo.Sphere(0.025)),
-])
-def test_a_fragment_with_rounded_rims_is_read_as_its_sharp_primitive(kind, sizes, reference):
-    """A fragment seen on a few faces, its warm surface a rounded, 1 mm swollen version of the
-    truth (the warm start's shape errors), comes back as the true primitive: the peaks, the
-    free space in front of them, and the rounded surface weakly."""
+VIEWS = [[1.0, 0.2, 0.1], [-0.2, 1.0, 0.3], [0.1, -0.3, 1.0]]  # unit once normalised
+
+
+def _explained(reference: geo.SDF, shrunk: geo.SDF, views=VIEWS) -> tuple[FragmentFit, geo.SDF]:
+    """:func:`explain_fragment` of the turned ``reference`` seen from ``views`` (in its own frame,
+    turned with it), its warm surface a rounded, 1 mm swollen version of it (``shrunk`` by 4 mm,
+    swollen by 5: the warm start's shape errors); and the turned truth."""
     truth = _turned(reference)
-    views = torch.tensor([[1.0, 0.2, 0.1], [-0.2, 1.0, 0.3], [0.1, -0.3, 1.0]], dtype=torch.float64)
-    views = views / views.norm(dim=1, keepdim=True)
-    peaks, towards = _seen_from(truth, views)
-    rounded = _turned(geo.Box([s - 0.004 for s in sizes]) if kind == "box" else geo.Sphere(sizes[0] - 0.004))
+    views = torch.tensor(views, dtype=torch.float64) @ geo.rotation_from_vector(torch.tensor(TURN)).T.double()
+    peaks, towards = _seen_from(truth, views / views.norm(dim=1, keepdim=True))
+    rounded = _turned(shrunk)
     warm = _on(lambda p: rounded(p) - 0.005, 400, seed=2)
     free = free_space(peaks, towards, [-0.2] * 3, [0.2] * 3)
-    fit = fit_fragment(Fragment(1, peaks, warm), free)
+    return explain_fragment(Fragment(1, peaks, warm), free), truth
+
+
+@pytest.mark.parametrize("kind, reference, shrunk", [
+    ("box", geo.Box([0.03, 0.02, 0.015]), geo.Box([0.026, 0.016, 0.011])),
+    ("sphere", geo.Sphere(0.025), geo.Sphere(0.021)),
+    ("cylinder", geo.CappedCylinder(0.015, 0.05), geo.CappedCylinder(0.011, 0.042)),
+])
+def test_a_fragment_with_rounded_rims_is_read_as_its_sharp_primitive(kind, reference, shrunk):
+    """A fragment seen on a few faces comes back as the true primitive: the peaks, the free
+    space in front of them, and the rounded surface weakly."""
+    fit, truth = _explained(reference, shrunk)
     assert fit.primitive.kind == kind and fit.explains
     assert fit.peaks_median_m < 2e-4 and fit.carved == 0
     true_surface = _on(truth, 2000, seed=3)
     assert float(fit.primitive(true_surface).detach().abs().median()) < 5e-4  # also where no view sees it
+
+
+def test_a_capsule_is_read_where_the_views_see_its_ends_round_and_a_cylinder_where_they_do_not():
+    """Seen on its sides and face-on at one end, where a cylinder's flat end lies within a tenth
+    of a millimetre of the peaks too, a capsule is read as a cylinder (the fallback's margin);
+    seen on one end from three sides, as a capsule."""
+    def capsule(half_length: float) -> list[geo.SDF]:
+        return [geo.Capsule([0, 0, -half_length], [0, 0, half_length], radius) for radius in (0.012, 0.008)]
+
+    face_on, _ = _explained(*capsule(0.03))
+    ends, truth = _explained(*capsule(0.02), views=[[0.0, 0.0, 1.0], [0.8, 0.0, 0.6], [-0.4, 0.7, 0.6], [0.0, -1.0, 0.0]])
+    assert face_on.primitive.kind == "cylinder" and face_on.explains
+    assert ends.primitive.kind == "capsule" and ends.explains and ends.peaks_median_m < 2e-4
+    assert float(ends.primitive(_on(truth, 2000, seed=3)).detach().abs().median()) < 5e-4
 
 
 def _fitted_alone(fragment: Fragment, free: torch.Tensor, steps: int) -> FramedPrimitive:

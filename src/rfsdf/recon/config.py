@@ -130,7 +130,7 @@ class InitConfig(StrictModel):
     # scene's objects, or in them, and outside the cavity they close (a box's inside) take
     # no part in the detection nor in the range peaks (warm_start.known_exclusion)
     known_margin_m: NonNegativeFloat = 0.003
-    # after the warm start, replace each of its fragments by the sphere, box, cylinder or torus
+    # after the warm start, replace each of its fragments by the sphere, box, cylinder, capsule or torus
     # that explains the fragment's range peaks (recon.object_primitives), and regress the
     # network onto that target (400 steps from the warm start's rate, decayed); needs the range peaks
     # (docs/results/demo-quality.md, "Primitives for the warm start's fragments"). False: as before
