@@ -1,10 +1,11 @@
 """The default fit against variants of its settings, each from its own warm start: on a scene's
 simulated data (the demo's settings), every variant (ReconConfig overrides, the warm start's
-included) fitted on the same data and CLEAN image, for each seed of the fit. Per run: the range
-peaks the fit holds and how far they lie from the true surface (beyond 2 mm, within 1 mm,
-amplitude-weighted), the warm start's and the fit's observed-surface and whole-surface
-Chamfer-L1 with each object's, the share of the warm start's observed error the fit removes,
-and with a material head the demo's material readout.
+included) fitted on the same data and CLEAN image, for each seed of the fit. Per run: its time
+(the warm start's with any primitives, and the fit's steps'), the range peaks the fit holds and
+how far they lie from the true surface (beyond 2 mm, within 1 mm, amplitude-weighted), each
+fragment's primitive where they are fitted, the warm start's and the fit's observed-surface and
+whole-surface Chamfer-L1 with each object's, the share of the warm start's observed error the
+fit removes, and with a material head the demo's material readout.
 
 Usage: python benchmarks/fit_variants.py --variants '{"name": {recon overrides}, ...}'
        [--scene objects] [--seeds 0,1,2] [--device cpu] [--out benchmarks/results/fit-variants-SCENE.json]
@@ -46,6 +47,14 @@ def _peak_distances(trainer: Trainer, scene) -> dict[str, float]:
             "amplitude_weighted_mm": float(np.average(distance, weights=amplitude.numpy()) * 1e3)}
 
 
+def _primitives(trainer: Trainer) -> list[dict]:
+    """Each fragment's best primitive (``[init] primitives``): its kind, peaks, median gap at them
+    and the warm start's [mm], and whether it replaced the fragment."""
+    return [{"kind": fit.primitive.kind, "peaks": len(fit.fragment.peaks), "median_mm": fit.peaks_median_m * 1e3,
+             "warm_median_mm": fit.fragment.warm_median_m * 1e3, "replaces": fit.explains}
+            for fit in trainer.primitive_fits or []]
+
+
 def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int], device: str, out: Path) -> list[dict]:
     """Fit every variant on every seed (see the module docstring); each row is printed and the
     JSON at ``out`` rewritten as it comes. Returns the rows."""
@@ -83,8 +92,11 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
                 fit = trainer.fit()
                 seconds = round(time.perf_counter() - clock, 1)
                 (warm, _), (fitted, mesh) = scores(fit.warm_field), scores(fit.field)
+                steps_s = round(sum(record.seconds for record in trainer.log), 1)
                 row = {"seed": seed, "variant": variant, "overrides": overrides, "fit_s": seconds,
-                       **_peak_distances(trainer, scene), "warm_start": warm, "fit": fitted,
+                       "start_s": round(seconds - steps_s, 1), "steps_s": steps_s,
+                       **_peak_distances(trainer, scene), "primitives": _primitives(trainer),
+                       "warm_start": warm, "fit": fitted,
                        "removed": 1 - fitted["observed_mm"] / warm["observed_mm"]}
                 if fit.field.material_head is not None:
                     row["materials"] = _materials(trainer, fit, mesh, reference, scene, settings.seed)
