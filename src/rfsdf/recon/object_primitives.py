@@ -5,9 +5,10 @@ millimetre or two, but its rims are rounded and its faces lumpy, and those error
 not offsets, which neither the loss's phase nor a glint's own phase can read
 (docs/results/demo-quality.md, "Each glint's carrier phase, read line by line"). Most objects
 people image are, or are made of, spheres, boxes, cylinders, capsules and tori, which have sharp
-rims, flat faces and even curvatures. So each connected piece of the warm start's interior (a *fragment*: an object, or
-the part of one the views saw) is fitted by each primitive in turn, in a local frame (a centre,
-a rotation vector and log sizes, all differentiable), by Adam on three terms:
+rims, flat faces and even curvatures. So each connected piece of the warm start's interior (a
+*fragment*: an object, or the part of one the views saw) is fitted by each primitive in turn, in a
+local frame (a centre, a rotation vector and log sizes, all differentiable), by Adam on three
+terms:
 
 - the range peaks in the fragment lie on the surface (a Huber loss of f there, 1 mm knee; read
   as glints, ``[init] peak_cone_deg``, of the least f over each one's cap, recon/glints.py);
@@ -17,13 +18,13 @@ a rotation vector and log sizes, all differentiable), by Adam on three terms:
   free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it.
 
 The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the
-fragment or it explains it clearly better). It replaces its fragment where it *explains* the fragment's peaks (their
-median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm; or, with
-the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below the warm start's own:
-a better account of them than the surface it replaces) and hardly carves the lines of sight
-(fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside);
-elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new target is
-the warm start with the replaced fragments cut out, united with their primitives; the network
+fragment or it explains it clearly better). It replaces its fragment where it *explains* the
+fragment's peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them
+within 1 mm; or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below
+the warm start's own: a better account of them than the surface it replaces) and hardly carves the
+lines of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm
+inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new target
+is the warm start with the replaced fragments cut out, united with their primitives; the network
 is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate decayed
 to zero so that it ends where the target is, not where the last batches left it.
 """
@@ -286,10 +287,10 @@ def _descend(primitives: list[FramedPrimitive], optimizer, schedule, steps: int,
 
 def fit_fragment(fragment: Fragment, free: torch.Tensor, *, kinds=PRIMITIVE_KINDS, steps: int = FIT_STEPS,
                  lr: float = FIT_LR) -> FragmentFit:
-    """Each of :func:`candidates` of ``kinds`` fitted to ``fragment`` with the free-space samples ``free``
-    (M, 3) near it by Adam (the centre at ``lr``, the rotation and log sizes faster, cosine
-    decay over ``steps``): all for a third of the steps, the ``SURVIVORS`` lowest for the rest;
-    the lowest loss, scored."""
+    """Each of :func:`candidates` of ``kinds`` fitted to ``fragment`` with the free-space samples
+    ``free`` (M, 3) near it by Adam (the centre at ``lr``, the rotation and log sizes faster,
+    cosine decay over ``steps``): all for a third of the steps, the ``SURVIVORS`` lowest for the
+    rest; the lowest loss, scored."""
     points = torch.cat([fragment.surface, fragment.peaks])
     reach = ((free > points.min(0).values - FREE_REACH_M) & (free < points.max(0).values + FREE_REACH_M)).all(1)
     free = free[reach]  # the lines of sight a primitive near these points could cross
