@@ -36,8 +36,8 @@ from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon.object_primitives import (REGRESSION_STEPS, explain_fragment, fragments, free_space, primitive_target,
-                                          regress_to_primitives)
+from rfsdf.recon.object_primitives import (REGRESSION_STEPS, explain_fragment, explain_together, fragments, free_space,
+                                          primitive_target, regress_to_primitives)
 
 
 def _seen_agreement(fit, scene, reach_m: float = 0.006) -> dict:
@@ -82,16 +82,16 @@ def main() -> None:
     caps = trainer.peak_caps(args.cone)
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
     free = free_space(points, towards, scene.lower_m, scene.upper_m)
-    fits = []
-    for piece in pieces:
-        fits.append(explain_fragment(piece, free))
-        print(fits[-1].primitive.kind, f"{fits[-1].peaks_median_m * 1e3:.2f} mm", fits[-1].explains, flush=True)
+    fits = explain_together([explain_fragment(piece, free) for piece in pieces if len(piece.peaks)], warm.sdf, free)
+    for fit in fits:
+        print(fit.primitive.kind, f"{fit.peaks_median_m * 1e3:.2f} mm", fit.explains, flush=True)
     names = [o.name for o in scene.objects]
     rows = []
     for fit in fits:
         with torch.no_grad():
             nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
-        rows.append({"object": names[int(nearest.mode().values)], "peaks": len(fit.fragment.peaks),
+        rows.append({"object": names[int(nearest.mode().values)], "fragments": len(fit.fragment.labels),
+                     "peaks": len(fit.fragment.peaks),
                      **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
                      "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains,
                      "warm_peaks_median_mm": fit.fragment.warm_median_m * 1e3,

@@ -18,7 +18,9 @@ terms:
   free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it.
 
 The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the
-fragment or it explains it clearly better). It replaces its fragment where it *explains* the
+fragment or it explains it clearly better). The views often see one object as several fragments
+(a torus's arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each
+other are fitted again as one, and one primitive that explains them all stands for their own. It replaces its fragment where it *explains* the
 fragment's peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them
 within 1 mm; or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below
 the warm start's own: a better account of them than the surface it replaces) and hardly carves the
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from scipy import ndimage
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .. import geometry as geo
@@ -46,7 +49,8 @@ from .glints import cap_minimum
 from .warm_start import fit_to_image
 
 __all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "FramedPrimitive", "Fragment", "FragmentFit",
-           "candidates", "fragments", "free_space", "fit_fragment", "explain_fragment", "primitive_target",
+           "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment", "near_groups",
+           "explain_together", "primitive_target",
            "primitive_surface", "regress_to_primitives", "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
@@ -60,6 +64,10 @@ PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
 FALLBACK_KINDS, FALLBACK_MARGIN = ("capsule",), 0.5
 FRAGMENT_VOXEL_M = 0.003  # the grid the warm start's interior is labelled on [m]
 MIN_FRAGMENT_M3 = 1e-6  # smaller pieces (floaters) are left as they are: 1 cm^3
+# fragments whose surfaces come this near are also fitted as one: the demo's torus, seen as three
+# pieces (two tori and a cylinder, the last not explained), is one torus 0.28 mm off all 150 peaks;
+# its whole surface then stands 0.42 mm from the truth against 1.28 (docs/results/demo-quality.md)
+JOIN_REACH_M = 0.01
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
 SURFACE_WEIGHT = 0.1
@@ -167,13 +175,14 @@ def candidates(points: np.ndarray, kinds=PRIMITIVE_KINDS) -> list[FramedPrimitiv
 
 @dataclass(frozen=True)
 class Fragment:
-    """A connected piece of the warm start's interior: its ``label`` on the labelled grid, its
-    range ``peaks`` (P, 3) and its warm ``surface`` points (S, 3) [m], float64; with ``caps``
+    """A connected piece of the warm start's interior (or several near ones, :func:`joined`): its
+    ``labels`` on the labelled grid, its range ``peaks`` (P, 3) and its warm ``surface`` points
+    (S, 3) [m], float64; with ``caps``
     (P, K, 3) [m], each peak's glint cap (:func:`~rfsdf.recon.glints.glint_caps`): a peak lies on
     a surface where the least f over its cap is 0 (None: f at the peak itself), and
     ``warm_median_m``, the warm start's own median |f| over them [m] (0: not measured)."""
 
-    label: int
+    labels: tuple[int, ...]
     peaks: torch.Tensor
     surface: torch.Tensor
     caps: torch.Tensor | None = None
@@ -227,15 +236,29 @@ def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor,
         return torch.from_numpy(owners[voxels.query(x.numpy(), distance_upper_bound=OWNER_REACH_M)[1]])
 
     surface_owner, peak_owner = owner(surface), owner(peaks)
-    if caps is None:
-        return labels, grid, [Fragment(label, peaks[peak_owner == label], surface[surface_owner == label])
-                              for label in kept]
-    caps = caps.double()
-    with torch.no_grad():
-        warm = cap_minimum(lambda x: sdf(x.float()).double(), caps).abs()
-    return labels, grid, [Fragment(label, peaks[mine], surface[surface_owner == label], caps[mine],
-                                   float(warm[mine].median()) if mine.any() else 0.0)
+    caps = None if caps is None else caps.double()
+    return labels, grid, [Fragment((label,), peaks[mine], surface[surface_owner == label],
+                                   None if caps is None else caps[mine], _warm_median(sdf, caps, mine))
                           for label in kept for mine in [peak_owner == label]]
+
+
+def _warm_median(sdf, caps: torch.Tensor | None, mine: torch.Tensor) -> float:
+    """``sdf``'s median |least f| [m] over the ``caps`` (P, K, 3) [m] selected by ``mine`` (P,)
+    bool; 0 without caps or peaks (:class:`Fragment`'s ``warm_median_m``)."""
+    if caps is None or not mine.any():
+        return 0.0
+    with torch.no_grad():
+        return float(cap_minimum(lambda x: sdf(x.float()).double(), caps[mine]).abs().median())
+
+
+def joined(pieces: list[Fragment], sdf) -> Fragment:
+    """The ``pieces`` (of one ``sdf``, float32 points -> f [m]) as one fragment: their labels,
+    peaks, caps and surfaces together, and ``sdf``'s median |least f| over all their caps."""
+    caps = None if pieces[0].caps is None else torch.cat([piece.caps for piece in pieces])
+    peaks = torch.cat([piece.peaks for piece in pieces])
+    return Fragment(tuple(label for piece in pieces for label in piece.labels), peaks,
+                    torch.cat([piece.surface for piece in pieces]), caps,
+                    _warm_median(sdf, caps, torch.ones(len(peaks), dtype=torch.bool)))
 
 
 def free_space(points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m) -> torch.Tensor:
@@ -323,6 +346,29 @@ def explain_fragment(fragment: Fragment, free: torch.Tensor) -> FragmentFit:
     return fallback if fallback.explains and (clearly or not fit.explains) else fit
 
 
+def near_groups(pieces: list[Fragment], reach_m: float = JOIN_REACH_M) -> list[list[int]]:
+    """The indices of ``pieces`` in groups of two or more whose warm surfaces come within
+    ``reach_m`` of each other, directly or through others of the group."""
+    near = np.zeros((len(pieces), len(pieces)), bool)
+    for i, j in zip(*np.triu_indices(len(pieces), 1)):
+        if len(pieces[i].surface) and len(pieces[j].surface):
+            near[i, j] = torch.cdist(pieces[i].surface, pieces[j].surface).min() < reach_m
+    _, group = connected_components(near, directed=False)
+    members = [np.flatnonzero(group == g).tolist() for g in range(group.max() + 1)] if len(pieces) else []
+    return [m for m in members if len(m) > 1]
+
+
+def explain_together(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[FragmentFit]:
+    """``fits`` with each :func:`near_groups` of their fragments fitted as one (:func:`joined`
+    over ``sdf``, :func:`explain_fragment` with the free-space samples ``free``): where one
+    primitive explains the group, its fit stands for the members'."""
+    groups = near_groups([fit.fragment for fit in fits])
+    together = [explain_fragment(joined([fits[i].fragment for i in group], sdf), free) for group in groups]
+    taken = [(fit, group) for fit, group in zip(together, groups) if fit.explains]
+    replaced = {i for _, group in taken for i in group}
+    return [fit for i, fit in enumerate(fits) if i not in replaced] + [fit for fit, _ in taken]
+
+
 def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit]):
     """The new target, points (N, 3) -> f [m] (their dtype and device; computed on the CPU, as
     ``sdf`` is): ``sdf`` (the warm start, held constant) with the fragments whose primitive
@@ -331,7 +377,7 @@ def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit
     chosen = [fit for fit in fits if fit.explains]
     if not chosen:
         return sdf
-    region = np.isin(labels, [fit.fragment.label for fit in chosen])
+    region = np.isin(labels, [label for fit in chosen for label in fit.fragment.labels])
     margin = FRAGMENT_VOXEL_M - ndimage.distance_transform_edt(~region) * FRAGMENT_VOXEL_M
     cut = interpolated_sdf(torch.as_tensor(margin, dtype=torch.float32).flatten(), grid)
     primitives = [fit.primitive for fit in chosen]
@@ -382,7 +428,9 @@ def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m,
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
     labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points, caps)
     free = free_space(points, towards, lower_m, upper_m)
-    fits = [explain_fragment(piece, free) for piece in progress_bar(pieces, desc="primitives", enabled=progress)]
+    seen = [piece for piece in pieces if len(piece.peaks)]  # a fragment with no peaks has nothing to explain
+    fits = [explain_fragment(piece, free) for piece in progress_bar(seen, desc="primitives", enabled=progress)]
+    fits = explain_together(fits, frozen.sdf, free)
     chosen = [fit for fit in fits if fit.explains]
     if chosen:
         regress_to_primitives(field, frozen, primitive_target(frozen.sdf, labels, grid, chosen), chosen, grid,
