@@ -105,7 +105,7 @@ def test_fragments_near_each_other_are_grouped_through_their_neighbours():
               for label, x in enumerate([0.0, 0.014, 0.028, 0.078], start=1)]
     assert 0.006 < JOIN_REACH_M
     assert near_groups(pieces) == [[0, 1, 2]]
-    assert near_groups(pieces, reach_m=0.005) == []
+    assert near_groups(pieces, reach_m=0.005) == [] == near_groups([])
 
 
 def test_a_torus_seen_as_two_arcs_is_read_as_one_torus():

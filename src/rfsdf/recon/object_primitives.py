@@ -18,17 +18,18 @@ terms:
   free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it.
 
 The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the
-fragment or it explains it clearly better). The views often see one object as several fragments
-(a torus's arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each
-other are fitted again as one, and one primitive that explains them all stands for their own. It replaces its fragment where it *explains* the
+fragment or it explains it clearly better). It replaces its fragment where it *explains* the
 fragment's peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them
 within 1 mm; or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below
 the warm start's own: a better account of them than the surface it replaces) and hardly carves the
 lines of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm
-inside); elsewhere (a torus's arc, an object no primitive is) the warm start stays. The new target
-is the warm start with the replaced fragments cut out, united with their primitives; the network
-is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate decayed
-to zero so that it ends where the target is, not where the last batches left it.
+inside); elsewhere (an object no primitive is) the warm start stays. The views often see one
+object as several fragments (a torus's arcs, a box's faces): fragments whose surfaces come within
+``JOIN_REACH_M`` of each other are fitted again as one, and a primitive that explains them all
+stands for their own fits. The new target is the warm start with the replaced fragments cut out,
+united with their primitives; the network is regressed onto it with f = 0 pinned at points of
+those primitives' surfaces, its rate decayed to zero so that it ends where the target is, not
+where the last batches left it.
 """
 
 from __future__ import annotations
@@ -177,10 +178,10 @@ def candidates(points: np.ndarray, kinds=PRIMITIVE_KINDS) -> list[FramedPrimitiv
 class Fragment:
     """A connected piece of the warm start's interior (or several near ones, :func:`joined`): its
     ``labels`` on the labelled grid, its range ``peaks`` (P, 3) and its warm ``surface`` points
-    (S, 3) [m], float64; with ``caps``
-    (P, K, 3) [m], each peak's glint cap (:func:`~rfsdf.recon.glints.glint_caps`): a peak lies on
-    a surface where the least f over its cap is 0 (None: f at the peak itself), and
-    ``warm_median_m``, the warm start's own median |f| over them [m] (0: not measured)."""
+    (S, 3) [m], float64; with ``caps`` (P, K, 3) [m], each peak's glint cap
+    (:func:`~rfsdf.recon.glints.glint_caps`): a peak lies on a surface where the least f over its
+    cap is 0 (None: f at the peak itself), and ``warm_median_m``, the warm start's own median |f|
+    over them [m] (0: not measured)."""
 
     labels: tuple[int, ...]
     peaks: torch.Tensor
@@ -349,12 +350,14 @@ def explain_fragment(fragment: Fragment, free: torch.Tensor) -> FragmentFit:
 def near_groups(pieces: list[Fragment], reach_m: float = JOIN_REACH_M) -> list[list[int]]:
     """The indices of ``pieces`` in groups of two or more whose warm surfaces come within
     ``reach_m`` of each other, directly or through others of the group."""
+    if not pieces:
+        return []
     near = np.zeros((len(pieces), len(pieces)), bool)
     for i, j in zip(*np.triu_indices(len(pieces), 1)):
         if len(pieces[i].surface) and len(pieces[j].surface):
             near[i, j] = torch.cdist(pieces[i].surface, pieces[j].surface).min() < reach_m
     _, group = connected_components(near, directed=False)
-    members = [np.flatnonzero(group == g).tolist() for g in range(group.max() + 1)] if len(pieces) else []
+    members = [np.flatnonzero(group == g).tolist() for g in range(group.max() + 1)]
     return [m for m in members if len(m) > 1]
 
 
