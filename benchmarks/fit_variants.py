@@ -52,7 +52,8 @@ def _primitives(trainer: Trainer) -> list[dict]:
     for, their peaks, the median gap at them and the warm start's [mm], and whether it replaced
     them."""
     return [{"kind": fit.primitive.kind, "fragments": len(fit.fragment.labels), "peaks": len(fit.fragment.peaks),
-             "median_mm": fit.peaks_median_m * 1e3, "warm_median_mm": fit.fragment.warm_median_m * 1e3, "replaces": fit.explains}
+             "median_mm": fit.peaks_median_m * 1e3, "warm_median_mm": fit.fragment.warm_median_m * 1e3,
+             "replaces": fit.explains}
             for fit in trainer.primitive_fits or []]
 
 

@@ -1,8 +1,8 @@
 """What `[init] primitives` makes of a scene's warm start (the demo's by default). The warm
 start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
-(`explain_fragment`), with the true object it lies on, its peaks, the best primitive and whether it
-replaces the fragment, the warm start's own median |f| over the same peaks (read as glints), and
+(`explain_all`: near fragments also as one), with the true object it lies on, its peaks, the
+best primitive and whether it replaces the fragment, the warm start's own median |f| over the same peaks (read as glints), and
 over the warm surface the views saw (within 6 mm of its peaks) how far the primitive lies from it
 and which of the two the truth is nearer to; then the warm start and the target
 (`primitive_target`) scored as the demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
@@ -36,8 +36,8 @@ from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon.object_primitives import (REGRESSION_STEPS, explain_fragment, explain_together, fragments, free_space,
-                                          primitive_target, regress_to_primitives)
+from rfsdf.recon.object_primitives import (REGRESSION_STEPS, explain_all, fragments, free_space, primitive_target,
+                                          regress_to_primitives)
 
 
 def _seen_agreement(fit, scene, reach_m: float = 0.006) -> dict:
@@ -82,7 +82,7 @@ def main() -> None:
     caps = trainer.peak_caps(args.cone)
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
     free = free_space(points, towards, scene.lower_m, scene.upper_m)
-    fits = explain_together([explain_fragment(piece, free) for piece in pieces if len(piece.peaks)], warm.sdf, free)
+    fits = explain_all(pieces, warm.sdf, free)
     for fit in fits:
         print(fit.primitive.kind, f"{fit.peaks_median_m * 1e3:.2f} mm", fit.explains, flush=True)
     names = [o.name for o in scene.objects]

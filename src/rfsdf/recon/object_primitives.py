@@ -51,7 +51,7 @@ from .warm_start import fit_to_image
 
 __all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "FramedPrimitive", "Fragment", "FragmentFit",
            "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment", "near_groups",
-           "explain_together", "primitive_target",
+           "explain_together", "explain_all", "primitive_target",
            "primitive_surface", "regress_to_primitives", "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
@@ -372,6 +372,14 @@ def explain_together(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[F
     return [fit for i, fit in enumerate(fits) if i not in replaced] + [fit for fit, _ in taken]
 
 
+def explain_all(pieces: list[Fragment], sdf, free: torch.Tensor, *, progress: bool = False) -> list[FragmentFit]:
+    """:func:`explain_fragment` of every one of ``pieces`` with peaks (one without has nothing to
+    explain), then :func:`explain_together` of the near ones (over ``sdf``, with ``free``)."""
+    seen = [piece for piece in pieces if len(piece.peaks)]
+    fits = [explain_fragment(piece, free) for piece in progress_bar(seen, desc="primitives", enabled=progress)]
+    return explain_together(fits, sdf, free)
+
+
 def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit]):
     """The new target, points (N, 3) -> f [m] (their dtype and device; computed on the CPU, as
     ``sdf`` is): ``sdf`` (the warm start, held constant) with the fragments whose primitive
@@ -431,9 +439,7 @@ def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m,
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
     labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points, caps)
     free = free_space(points, towards, lower_m, upper_m)
-    seen = [piece for piece in pieces if len(piece.peaks)]  # a fragment with no peaks has nothing to explain
-    fits = [explain_fragment(piece, free) for piece in progress_bar(seen, desc="primitives", enabled=progress)]
-    fits = explain_together(fits, frozen.sdf, free)
+    fits = explain_all(pieces, frozen.sdf, free, progress=progress)
     chosen = [fit for fit in fits if fit.explains]
     if chosen:
         regress_to_primitives(field, frozen, primitive_target(frozen.sdf, labels, grid, chosen), chosen, grid,
