@@ -2,12 +2,13 @@
 start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`explain_all`: near fragments also as one), with the true object it lies on, its peaks, the
-best primitive and whether it replaces the fragment, the warm start's own median |f| over the same peaks (read as glints), and
-over the warm surface the views saw (within 6 mm of its peaks) how far the primitive lies from it
-and which of the two the truth is nearer to; then the warm start and the target
-(`primitive_target`) scored as the demo scores a mesh (whole and observed Chamfer, per object), and the network regressed onto the
-target (`regress_to_primitives`) at each of ``--regressions`` (steps, a scale of the warm start's
-rate, whether it decays, the seed of its draws; timed), scored the same way. The fit from it:
+best primitive and whether it replaces the fragment, the warm start's own median |f| over the
+same peaks (read as glints), and over the warm surface the views saw (within 6 mm of its peaks)
+how far the primitive lies from it and which of the two the truth is nearer to; then the warm
+start and the target (`primitive_target`) scored as the demo scores a mesh (whole and observed
+Chamfer, per object), and the network regressed onto the target (`regress_to_primitives`) at
+each of ``--regressions`` (steps, a scale of the warm start's rate, whether it decays, the seed
+of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
 
 Usage: python benchmarks/primitive_start.py [--scene objects] [--cone 0]
