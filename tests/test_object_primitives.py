@@ -8,11 +8,11 @@ import torch
 from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
-from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, ROTATION_LR_SCALE,
-                                          SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence,
-                                          JOIN_REACH_M, candidates, explain_fragment, explain_together, fit_fragment,
-                                          fragments, free_space, joined, near_groups, primitive_surface,
-                                          primitive_target)
+from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, FREE_STEPS_M,
+                                          JOIN_REACH_M, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive,
+                                          Fragment, FragmentFit, _Evidence, candidates, explain_fragment,
+                                          explain_together, fit_fragment, fragments, free_space, joined, near_groups,
+                                          primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -180,6 +180,38 @@ def test_free_space_follows_each_line_of_sight_inside_the_box():
     along_z = samples[samples[:, 0] == 0.0]
     assert along_z[:, 2].min() == pytest.approx(0.004) and along_z[:, 2].max() < 0.1
     assert (samples.abs() < 0.1).all() and len(samples) < 80  # the second line leaves the box at 5 cm
+
+
+def test_a_line_of_sight_the_occluder_holds_is_not_free_space():
+    """Of three lines, the one a ball 6 cm up holds (15 mm deep) is dropped; one that grazes it
+    (half a millimetre inside) and one beside it stay."""
+    points = torch.tensor([[0.0, 0.0, 0.0], [0.0195, 0.0, 0.0], [0.05, 0.0, 0.0]], dtype=torch.float64)
+    towards = torch.tensor([[0.0, 0.0, 1.0]] * 3, dtype=torch.float64)
+    ball = geo.Sphere(0.02, [0.0, 0.0, 0.06])
+    occluder = lambda p: ball(p.double()).float()  # noqa: E731  (float32 in and out, as the warm start)
+    clear = free_space(points, towards, [-0.3] * 3, [0.3] * 3, occluder=occluder)
+    every = free_space(points, towards, [-0.3] * 3, [0.3] * 3)
+    assert len(every) == 3 * FREE_STEPS_M[2] and len(clear) == 2 * FREE_STEPS_M[2]
+    assert set(clear[:, 0].tolist()) == {0.0195, 0.05}
+
+
+def test_a_ball_with_peaks_behind_it_is_read_as_a_ball_on_the_lines_the_warm_start_leaves_clear():
+    """Peaks 6 cm behind a ball, their lines running through it (returns placed beyond the surface
+    a view saw), carve any primitive where the ball is: on every line the sphere is refused; on
+    the lines the warm start (the ball 1 mm swollen) leaves clear it is read, on its peaks."""
+    truth = _turned(geo.Sphere(0.025))
+    views = torch.tensor(VIEWS, dtype=torch.float64)
+    peaks, towards = _seen_from(truth, views / views.norm(dim=1, keepdim=True))
+    behind, behind_towards = peaks[::5] - 0.06 * towards[::5], towards[::5]
+    swollen = lambda p: truth(p) - 0.001  # noqa: E731
+    fragment = Fragment((1,), peaks, _on(swollen, 400, seed=2))
+    lines = torch.cat([peaks, behind]), torch.cat([towards, behind_towards])
+    every = explain_fragment(fragment, free_space(*lines, [-0.2] * 3, [0.2] * 3))
+    occluder = lambda p: swollen(p.double()).float()  # noqa: E731
+    clear = explain_fragment(fragment, free_space(*lines, [-0.2] * 3, [0.2] * 3, occluder=occluder))
+    assert not (every.primitive.kind == "sphere" and every.explains)
+    assert clear.primitive.kind == "sphere" and clear.explains and clear.carved == 0
+    assert clear.peaks_median_m < 2e-4
 
 
 def test_the_target_replaces_the_explained_fragments_only():
