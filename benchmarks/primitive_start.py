@@ -82,7 +82,7 @@ def main() -> None:
     points, _, _, towards = trainer.peaks
     caps = trainer.peak_caps(args.cone)
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
-    free = free_space(points, towards, scene.lower_m, scene.upper_m)
+    free = free_space(points, towards, scene.lower_m, scene.upper_m, occluder=warm.sdf)
     fits = explain_all(pieces, warm.sdf, free)
     for fit in fits:
         print(fit.primitive.kind, f"{fit.peaks_median_m * 1e3:.2f} mm", fit.explains, flush=True)

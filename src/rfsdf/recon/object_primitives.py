@@ -18,8 +18,9 @@ terms:
   free space (``FREE_WEIGHT`` * mean max(-f - 0.5 mm, 0)): a view saw the peak through it. Not
   a line the warm start itself holds (more than ``CLEAR_DEPTH_M`` inside): its peak lies behind
   the surface the views saw or beyond another object, and says nothing of the space in front
-  (pantry: 120 of 1248 peaks, three in four held from 4 mm in front of the peak; counted in, the
-  true wood sphere carves 2.1 % of the samples near it and is refused; docs/results/demo-quality.md).
+  (pantry: 120 of 1248 peaks, more than half held from 4 mm in front of the peak; counted in, a
+  sphere 0.12 mm from the true wood ball carves 2.1 % of the samples near it and is refused;
+  docs/results/demo-quality.md, "The lines of sight the warm start holds").
 
 The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the
 fragment or it explains it clearly better). It replaces its fragment where it *explains* the
@@ -84,8 +85,8 @@ FIT_STEPS, FIT_LR = 300, 1e-3  # Adam's steps, and its rate for the centre [m pe
 ROTATION_LR_SCALE, SIZE_LR_SCALE = 3.0, 10.0  # the rotation's [rad] and the log sizes' rates, over FIT_LR
 SURVIVORS = 2  # the candidates fitted to the end, the lowest after a third of the steps
 FREE_REACH_M = 0.02  # a fragment's fit sees the free space within this of its points' box [m]
-# a few lines of sight of peaks not exactly on the surface cross it: 0.9 % of the samples near
-# the demo's metal ball, whose sphere scores 0.38 mm Chamfer against the truth
+# a few lines of sight of peaks not exactly on the surface cross it: 0.1 % of the clear lines' samples
+# near the demo's metal ball (0.6 % of every line's), whose sphere scores 0.18 mm against the truth
 ACCEPT_MEDIAN_M, ACCEPT_WITHIN, ACCEPT_CARVED = 6e-4, 0.7, 0.02
 # read as glints, a primitive nearer the peaks than the warm start is (median) also replaces it
 # below this: tabletop's glass brick, a box 0.68 mm off its peaks (the warm start 1.32 mm), whose
