@@ -15,18 +15,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from functools import partial
 from pathlib import Path
 
-import torch
 from demo_data import demo_data, demo_warm_start
-from seeds import _scores
+from primitive_start import object_of, scorer
 
 from rfsdf.demo import DemoSettings
 from rfsdf.jsonio import to_json
-from rfsdf.mesh import extract_mesh
-from rfsdf.metrics import evaluate_scene
-from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon.object_primitives import explain_all, fragments, free_space, primitive_target
 
 PRESETS = ("objects", "tabletop")
@@ -44,25 +39,14 @@ def _scene(name: str, cone_deg: float) -> dict:
     warm = trainer.field.requires_grad_(False)
     points, _, _, towards = trainer.peaks
     labels, grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, trainer.peak_caps(cone_deg))
-    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
-                    observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
-
-    def scored(sdf) -> dict:
-        metrics = score(extract_mesh(sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution))
-        return {**_scores(metrics), "object_chamfer_mm": {n: m.chamfer_l1_mm for n, m in metrics.objects.items()}}
-
-    names = [o.name for o in scene.objects]
+    scored = scorer(data, settings)
     result = {"warm start": scored(warm.sdf)}
     for variant, occluder in (("every line", None), ("clear lines", warm.sdf)):
         free = free_space(points, towards, scene.lower_m, scene.upper_m, occluder=occluder)
         fits = explain_all(pieces, warm.sdf, free)
-        rows = []
-        for fit in fits:
-            with torch.no_grad():
-                nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
-            rows.append({"object": names[int(nearest.mode().values)], "fragments": len(fit.fragment.labels),
-                         "kind": fit.primitive.kind, "peaks_median_mm": fit.peaks_median_m * 1e3,
-                         "carved": fit.carved, "replaces": fit.explains})
+        rows = [{"object": object_of(fit, scene), "fragments": len(fit.fragment.labels), "kind": fit.primitive.kind,
+                 "peaks_median_mm": fit.peaks_median_m * 1e3, "carved": fit.carved, "replaces": fit.explains}
+                for fit in fits]
         result[variant] = {"free_samples": len(free), "fragments": rows,
                            **scored(primitive_target(warm.sdf, labels, grid, fits))}
         print(name, variant, f"{result[variant]['observed_chamfer_l1_mm']:.2f} mm observed", flush=True)

@@ -60,6 +60,27 @@ def _seen_agreement(fit, scene, reach_m: float = 0.006) -> dict:
             "seen_warm_truth_mm": float(truth[0]) * 1e3, "seen_primitive_truth_mm": float(truth[1]) * 1e3}
 
 
+def object_of(fit, scene) -> str:
+    """The name of the true object most of ``fit``'s fragment's warm surface lies nearest to."""
+    with torch.no_grad():
+        nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
+    return scene.objects[int(nearest.mode().values)].name
+
+
+def scorer(data, settings):
+    """sdf -> the demo's scores of its mesh on ``data``'s scene (whole and observed Chamfer, ...,
+    and each object's Chamfer [mm])."""
+    scene = data.scene
+    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
+                    observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
+
+    def scored(sdf) -> dict:
+        metrics = score(extract_mesh(sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution))
+        return {**_scores(metrics), "object_chamfer_mm": {name: m.chamfer_l1_mm for name, m in metrics.objects.items()}}
+
+    return scored
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scene", default=DemoSettings.scene)
@@ -86,23 +107,11 @@ def main() -> None:
     fits = explain_all(pieces, warm.sdf, free)
     for fit in fits:
         print(fit.primitive.kind, f"{fit.peaks_median_m * 1e3:.2f} mm", fit.explains, flush=True)
-    names = [o.name for o in scene.objects]
-    rows = []
-    for fit in fits:
-        with torch.no_grad():
-            nearest = torch.stack([o.sdf(fit.fragment.surface).abs() for o in scene.objects]).argmin(0)
-        rows.append({"object": names[int(nearest.mode().values)], "fragments": len(fit.fragment.labels),
-                     "peaks": len(fit.fragment.peaks),
-                     **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
-                     "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains,
-                     "warm_peaks_median_mm": fit.fragment.warm_median_m * 1e3,
-                     **_seen_agreement(fit, scene)})
-    score = partial(evaluate_scene, scene=scene, samples=settings.metric_samples, seed=settings.seed,
-                    observed=partial(observed_mask, acquisition=data.measurements.acquisition, occluder=scene.sdf))
-
-    def scored(sdf) -> dict:
-        metrics = score(extract_mesh(sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution))
-        return {**_scores(metrics), "object_chamfer_mm": {name: m.chamfer_l1_mm for name, m in metrics.objects.items()}}
+    rows = [{"object": object_of(fit, scene), "fragments": len(fit.fragment.labels), "peaks": len(fit.fragment.peaks),
+             **fit.primitive.describe(), "peaks_median_mm": fit.peaks_median_m * 1e3,
+             "peaks_within_1mm": fit.peaks_within, "carved": fit.carved, "replaces": fit.explains,
+             "warm_peaks_median_mm": fit.fragment.warm_median_m * 1e3, **_seen_agreement(fit, scene)} for fit in fits]
+    scored = scorer(data, settings)
 
     target = primitive_target(warm.sdf, labels, fragment_grid, fits)
     result = {"fragments": rows, "warm start": scored(warm.sdf), "target": scored(target), "regressions": []}

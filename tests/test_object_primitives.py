@@ -183,7 +183,7 @@ def test_free_space_follows_each_line_of_sight_inside_the_box():
 
 
 def test_a_line_of_sight_the_occluder_holds_is_not_free_space():
-    """Of three lines, the one a ball 6 cm up holds (15 mm deep) is dropped; one that grazes it
+    """Of three lines, the one through a ball 6 cm up (19 mm deep) is dropped; one that grazes it
     (half a millimetre inside) and one beside it stay."""
     points = torch.tensor([[0.0, 0.0, 0.0], [0.0195, 0.0, 0.0], [0.05, 0.0, 0.0]], dtype=torch.float64)
     towards = torch.tensor([[0.0, 0.0, 1.0]] * 3, dtype=torch.float64)
