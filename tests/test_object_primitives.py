@@ -260,13 +260,15 @@ def test_a_primitive_nearer_the_glints_than_the_warm_start_replaces_it():
 
 
 def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
-    """A sphere half sunk in a box: the pins are the sphere's surface outside the box only."""
+    """A sphere half sunk in a box: the pins are the sphere's surface outside the box only, and
+    their normals the sphere's, radial."""
     sphere = FramedPrimitive("sphere", [0.0, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
     box = geo.Box([0.02, 0.04, 0.04], [-0.02, 0.0, 0.0])  # covers the ball's x < 0 half
     target = lambda p: torch.minimum(sphere(p), box(p.double()).to(p.dtype)).detach()  # noqa: E731
     near = (torch.rand(2000, 3, generator=torch.Generator().manual_seed(1)) - 0.5) * 0.05
-    pins = primitive_surface(target, [sphere], near)
-    assert pins.dtype == torch.float32 and len(pins) > 500
+    pins, normals = primitive_surface(target, [sphere], near)
+    assert pins.dtype == normals.dtype == torch.float32 and len(pins) > 500 and normals.shape == pins.shape
+    assert (normals - torch.nn.functional.normalize(pins, dim=1)).norm(dim=1).max() < 1e-5
     assert (pins.double().norm(dim=1) - 0.02).abs().max() < 1e-6  # on the sphere
     assert (pins[:, 0] > -1e-4).all()  # none where the box covers it
     assert (pins[:, 0] > 0.01).sum() > len(pins) / 4  # and the free half kept

@@ -96,6 +96,12 @@ ACCEPT_BETTER_M = 1e-3
 # primitives (L1, this weight): on the demo (seed 0) the regressed network's observed surface
 # 1.68 -> 1.57 mm (its target's 1.61; weight 3: 1.55; docs/results/demo-quality.md)
 PIN_WEIGHT, PIN_TOLERANCE_M = 1.0, 1e-4
+# and turns grad f along the primitives' normals there (1 - cos, this weight; Hermite data): the
+# network holds their curvature (demo, 400 steps, draws 0/1/2: 1.16/1.09/1.11 mm observed without,
+# 1.01/0.99 at 0.3, the target's 0.99; 0.1: 1.03/1.00/1.02; 1.0: 1.08/1.05; the metal ball 0.30-0.35
+# -> 0.15-0.20 mm, its target 0.18; a pin weight of 5 or 20 instead holds the ball but loses
+# elsewhere, 1.21-1.69; docs/results/demo-quality.md, "Hermite pins")
+PIN_NORMAL_WEIGHT = 0.3
 # the regression's steps, its rate cosine-decayed from the warm start's: at a constant rate the
 # network stops wherever the last batches leave it (demo, seed 0, 300 steps: 1.62 and 2.01 mm
 # observed over two draws, the target 1.57); decayed, 1.55 and 1.53, and 1.50 in 100 steps. At
@@ -416,12 +422,16 @@ def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit
     return target
 
 
-def primitive_surface(target, primitives: list[FramedPrimitive], near: torch.Tensor) -> torch.Tensor:
-    """(M, 3) float32 points [m] on the ``primitives``' surfaces that are on ``target``'s too (within
-    ``PIN_TOLERANCE_M``; not where another piece covers them): ``near`` (N, 3) [m] projected onto each."""
-    on = torch.cat([project_to_zero_set(primitive, near.double()) for primitive in primitives])
+def primitive_surface(target, primitives: list[FramedPrimitive], near: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Points (M, 3) float32 [m] on the ``primitives``' surfaces that are on ``target``'s too (within
+    ``PIN_TOLERANCE_M``; not where another piece covers them), ``near`` (N, 3) [m] projected onto
+    each, and their primitive's outward unit normals there (M, 3) float32."""
+    on = [project_to_zero_set(primitive, near.double()) for primitive in primitives]
+    facing = torch.cat([geo.normals(primitive, points) for primitive, points in zip(primitives, on)])
+    on = torch.cat(on)
     with torch.no_grad():
-        return on[target(on).abs() < PIN_TOLERANCE_M].float()
+        kept = target(on).abs() < PIN_TOLERANCE_M
+    return on[kept].float(), facing[kept].detach().float()
 
 
 def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid: Grid, *, steps: int, lr: float,
@@ -430,15 +440,17 @@ def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid
     """Regress ``field`` onto ``target`` (:func:`primitive_target` of ``frozen``, the warm start
     held, over the fragments' ``grid``) by :func:`~rfsdf.recon.warm_start.fit_to_image` (``steps``
     at ``lr``, cosine-decayed with ``decay``), its reflectivity held where ``frozen``'s was and
-    f = 0 pinned at :func:`primitive_surface` of the ``chosen`` fits' primitives."""
+    f = 0 pinned at :func:`primitive_surface` of the ``chosen`` fits' primitives, with its normals
+    there (Hermite data: ``PIN_NORMAL_WEIGHT``)."""
     grid_points = grid.points()
     near = grid_points[target(grid_points).abs() < FRAGMENT_VOXEL_M]
-    pins = primitive_surface(target, [fit.primitive for fit in chosen], near)
+    pins, normals = primitive_surface(target, [fit.primitive for fit in chosen], near)
     reflectivity = lambda p: frozen.reflectivity(p.cpu()).to(p)  # noqa: E731  (held where it was)
     fit_to_image(field, grid.lower_m, grid.upper_m, target, reflectivity, steps=steps, lr=lr, batch=batch,
                  eikonal_weight=eikonal_weight, generator=generator, near_m=near, near_share=near_share,
                  near_jitter_m=FRAGMENT_VOXEL_M, surface_m=pins, surface_weights=torch.ones(len(pins)),
-                 surface_weight=PIN_WEIGHT, decay=decay, progress=progress)
+                 surface_weight=PIN_WEIGHT, surface_normals=normals, surface_normal_weight=PIN_NORMAL_WEIGHT,
+                 decay=decay, progress=progress)
 
 
 def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m, upper_m, *, lr: float, batch: int,
