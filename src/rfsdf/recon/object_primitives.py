@@ -422,7 +422,8 @@ def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit
     return target
 
 
-def primitive_surface(target, primitives: list[FramedPrimitive], near: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def primitive_surface(target, primitives: list[FramedPrimitive],
+                      near: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Points (M, 3) float32 [m] on the ``primitives``' surfaces that are on ``target``'s too (within
     ``PIN_TOLERANCE_M``; not where another piece covers them), ``near`` (N, 3) [m] projected onto
     each, and their primitive's outward unit normals there (M, 3) float32."""
