@@ -40,6 +40,15 @@ def test_distances_to_a_surface_match_the_sphere_in_closed_form():
     assert (np.einsum("ij,ij->i", closest, points) > 0).all()
 
 
+def test_a_mesh_moved_in_place_is_measured_where_it_is_now():
+    """to_surface keeps each mesh's tree: moving the mesh's vertices must not reuse the old one."""
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.05)
+    points = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    np.testing.assert_allclose(to_surface(points, sphere)[0], [0.05, 0.05], atol=1e-3)
+    sphere.apply_translation((0.2, 0.0, 0.0))
+    np.testing.assert_allclose(to_surface(points, sphere)[0], [0.15, 0.05], atol=1e-3)
+
+
 def test_shifted_plane_matches_hand_computed_distances():
     # Two parallel 1 m squares 3 mm apart: every nearest distance is ~3 mm (edges aside).
     a = trimesh.creation.box(extents=(1.0, 1.0, 1e-6))
