@@ -53,10 +53,11 @@ class Settings:
     snrs_db: tuple[float, ...] = (-30.0, -20.0, -10.0, 0.0, 20.0, 40.0)
     view_counts: tuple[int, ...] = (1, 2, 6)
     steps: int = 40
+    metric_samples: int = 20_000  # points on each mesh for the Chamfer distances
     seed: int = 0
 
 
-QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6)
+QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6, metric_samples=5_000)
 
 
 @dataclass(frozen=True)
@@ -108,12 +109,13 @@ def _point(setting: dict, settings: Settings) -> Point:
     data = ball_data(radar, settings.seed)
     reference = load_scene("sphere").ground_truth_mesh()
     power = matched_filter(data, GRID, method="exact").power().numpy()
-    mf = best_threshold_mesh(power, GRID, reference, samples=20_000, seed=settings.seed).metrics.chamfer_l1_mm
+    mf = best_threshold_mesh(power, GRID, reference, samples=settings.metric_samples,
+                             seed=settings.seed).metrics.chamfer_l1_mm
     config = fit_config(_START_M, settings.steps, settings.seed, views_per_step=setting["views"])
 
     def chamfer(field) -> float:
         mesh = extract_mesh(field.sdf, GRID.lower_m, GRID.upper_m, 48)
-        return compare_meshes(mesh, reference, samples=20_000, seed=settings.seed).chamfer_l1_mm
+        return compare_meshes(mesh, reference, samples=settings.metric_samples, seed=settings.seed).chamfer_l1_mm
 
     with tempfile.TemporaryDirectory() as folder:
         trainer = Trainer(Problem(data, GRID), config, folder)
