@@ -38,12 +38,12 @@ def demo_data(settings: DemoSettings | None = None, device=None) -> DemoData:
     return DemoData(settings, scene, measurements, matched_filter(measurements, grid, device=device))
 
 
-def demo_warm_start(data: DemoData) -> tuple[Trainer, ReconConfig]:
+def demo_warm_start(data: DemoData, seed: int = 0) -> tuple[Trainer, ReconConfig]:
     """The warm start as ``rfsdf demo`` builds it on ``data`` (the default reconstruction, calibrated
-    by the scene's reference where it names one): the trainer after it (its ``field`` and range
-    ``peaks``; its run folder gone) and the config."""
+    by the scene's reference where it names one; ``seed`` the fit's, ``[train] seed``): the trainer
+    after it (its ``field`` and range ``peaks``; its run folder gone) and the config."""
     scene, grid = data.scene, data.image.grid
-    config = with_scene_reference(ReconConfig(), scene, data.settings)
+    config = with_scene_reference(ReconConfig.model_validate({"train": {"seed": seed}}), scene, data.settings)
     reference = (None if config.calibration.reference is None
                  else scene_reference(scene, config.calibration, data.measurements.acquisition))
     problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),

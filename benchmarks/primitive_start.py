@@ -1,5 +1,5 @@
 """What `[init] primitives` makes of a scene's warm start (the demo's by default). The warm
-start as `rfsdf demo` builds it (seed 0, calibrated by the scene's reference where it names
+start as `rfsdf demo` builds it (the fit's ``--seed``, 0 by default, calibrated by the scene's reference where it names
 one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`explain_all`: near fragments also as one), with the true object it lies on, its peaks, the
 best primitive and whether it replaces the fragment, the warm start's own median |f| over the
@@ -11,10 +11,11 @@ each of ``--regressions`` (steps, a scale of the warm start's rate, whether it d
 of its draws; timed), scored the same way. The fit from it:
 `python benchmarks/seeds.py --as-demo --recon '{"init": {"primitives": true}}'`.
 
-Usage: python benchmarks/primitive_start.py [--scene objects] [--cone 0]
+Usage: python benchmarks/primitive_start.py [--scene objects] [--seed 0] [--cone 0]
        [--regressions '[{"steps": 100, "lr_scale": 1, "decay": true}]']
        [--out benchmarks/results/primitive-start-SCENE.json]
-       (~8 min on 2 cores; the demo's scene writes primitive-start.json)
+       (~8 min on 2 cores; the demo's scene at seed 0 writes primitive-start.json, another seed
+       primitive-start-seedN.json)
 """
 
 from __future__ import annotations
@@ -84,6 +85,7 @@ def scorer(data, settings):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scene", default=DemoSettings.scene)
+    parser.add_argument("--seed", type=int, default=0, help="the fit's seed (`[train] seed`): its warm start's draws")
     parser.add_argument("--regressions", type=json.loads,
                         default=[{"steps": REGRESSION_STEPS, "lr_scale": 1.0, "decay": True}],
                         help="[{steps, lr_scale[, decay, seed]}, ...]: the network's regressions onto the target "
@@ -94,11 +96,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     settings = dataclasses.replace(DemoSettings(), scene=args.scene)
-    out = args.out or Path("benchmarks/results/" + ("primitive-start.json" if args.scene == DemoSettings.scene
-                                                    else f"primitive-start-{Path(args.scene).stem}.json"))
+    name = "" if args.scene == DemoSettings.scene else f"-{Path(args.scene).stem}"
+    out = args.out or Path(f"benchmarks/results/primitive-start{name}{f'-seed{args.seed}' if args.seed else ''}.json")
     data = demo_data(settings)
     scene = data.scene
-    trainer, config = demo_warm_start(data)
+    trainer, config = demo_warm_start(data, args.seed)
     warm = trainer.field.requires_grad_(False)
     points, _, _, towards = trainer.peaks
     caps = trainer.peak_caps(args.cone)
