@@ -9,7 +9,7 @@ from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, FREE_STEPS_M,
-                                          JOIN_REACH_M, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive,
+                                          JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive,
                                           Fragment, FragmentFit, _Evidence, candidates, explain_fragment,
                                           explain_together, fit_fragment, fragments, free_space, joined, near_groups,
                                           primitive_surface, primitive_target)
@@ -221,7 +221,8 @@ def test_the_target_replaces_the_explained_fragments_only():
         + 0.002 * torch.sin(200 * p[:, 0])  # noqa: E731
     box = geo.Box([0.015, 0.015, 0.015], [-0.06, 0.0, 0.0])
     warm = lambda p: torch.minimum(ball(p.double()), box(p.double())).to(p.dtype)  # noqa: E731
-    labels, grid, pieces = fragments(warm, [-0.1] * 3, [0.1] * 3, torch.zeros(0, 3))
+    on_ball = _on(lambda p: ball(p).double(), 100, seed=3)[:MIN_PEAKS]  # the ball's peaks; none on the box
+    labels, grid, pieces = fragments(warm, [-0.1] * 3, [0.1] * 3, on_ball)
     assert len(pieces) == 2
     ball_piece = next(piece for piece in pieces if piece.surface[:, 0].mean() > 0)
     box_piece = next(piece for piece in pieces if piece is not ball_piece)
@@ -240,7 +241,8 @@ def test_the_target_replaces_the_explained_fragments_only():
 def test_a_primitive_nearer_the_glints_than_the_warm_start_replaces_it():
     """Read as glints, each fragment carries the warm start's median |least f| over its peaks'
     caps; a primitive whose own median is below it and below ``ACCEPT_BETTER_M`` replaces the
-    fragment though fewer than ``ACCEPT_WITHIN`` of its peaks lie within 1 mm, unless it carves."""
+    fragment though fewer than ``ACCEPT_WITHIN`` of its peaks lie within 1 mm, unless it carves;
+    none replaces a fragment of fewer than ``MIN_PEAKS`` peaks, however near them it lies."""
     warm = lambda p: (p.norm(dim=1) - 0.0215).to(p.dtype)  # noqa: E731  (1.5 mm too large)
     directions = torch.nn.functional.normalize(torch.randn(60, 3, generator=torch.Generator().manual_seed(3),
                                                            dtype=torch.float64), dim=1)
@@ -257,6 +259,9 @@ def test_a_primitive_nearer_the_glints_than_the_warm_start_replaces_it():
         fragment = Fragment((1,), peaks, piece.surface, caps, warm_median)
         assert FragmentFit(fragment, ball, 0.0, median, within, carved).explains is explains
     assert ACCEPT_BETTER_M > ACCEPT_MEDIAN_M
+    few = Fragment((1,), peaks[:MIN_PEAKS - 1], piece.surface, caps[:MIN_PEAKS - 1], warm_median)
+    assert not FragmentFit(few, ball, 0.0, 0.0, 1.0, 0.0).explains  # fewer peaks than it has parameters
+    assert MIN_PEAKS > 9  # a box's centre, rotation and three half extents
 
 
 def test_the_pins_lie_on_the_primitive_where_it_is_the_target_surface():
