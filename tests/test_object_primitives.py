@@ -9,10 +9,10 @@ from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, FREE_STEPS_M,
-                                          JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive,
-                                          Fragment, FragmentFit, _Evidence, candidates, explain_fragment,
-                                          explain_together, fit_fragment, fragments, free_space, joined, near_groups,
-                                          primitive_surface, primitive_target)
+                                           JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS,
+                                           FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
+                                           explain_fragment, explain_together, fit_fragment, fragments, free_space,
+                                           joined, near_groups, primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]

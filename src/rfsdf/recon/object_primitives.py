@@ -22,19 +22,19 @@ terms:
   sphere 0.12 mm from the true wood ball carves 2.1 % of the samples near it and is refused;
   docs/results/demo-quality.md, "The lines of sight the warm start holds").
 
-The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the
-fragment or it explains it clearly better). It replaces its fragment where it *explains* the
-fragment's peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them
-within 1 mm; or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below
-the warm start's own: a better account of them than the surface it replaces), has more peaks than a
-primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (fewer than ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm
-inside); elsewhere (an object no primitive is) the warm start stays. The views often see one
-object as several fragments (a torus's arcs, a box's faces): fragments whose surfaces come within
-``JOIN_REACH_M`` of each other are fitted again as one, and a primitive that explains them all
-stands for their own fits. The new target is the warm start with the replaced fragments cut out,
-united with their primitives; the network is regressed onto it with f = 0 pinned at points of
-those primitives' surfaces, its rate decayed to zero so that it ends where the target is, not
-where the last batches left it.
+The lowest loss wins (a capsule, ``FALLBACK_KINDS``, only where no other kind explains the fragment
+or it explains it clearly better). It replaces its fragment where it *explains* the fragment's
+peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of them within 1 mm;
+or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below the warm
+start's own: a better account of them than the surface it replaces), has more peaks than a
+primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (fewer than
+``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside); elsewhere (an object no
+primitive is) the warm start stays. The views often see one object as several fragments (a torus's
+arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each other are
+fitted again as one, and a primitive that explains them all stands for their own fits. The new
+target is the warm start with the replaced fragments cut out, united with their primitives; the
+network is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate
+decayed to zero so that it ends where the target is, not where the last batches left it.
 """
 
 from __future__ import annotations
@@ -54,9 +54,9 @@ from ..progress import progress_bar
 from .glints import cap_minimum
 from .warm_start import fit_to_image
 
-__all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "MIN_PEAKS", "FramedPrimitive", "Fragment", "FragmentFit",
-           "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment", "near_groups",
-           "explain_together", "explain_all", "primitive_target",
+__all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "MIN_PEAKS", "FramedPrimitive", "Fragment",
+           "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment",
+           "near_groups", "explain_together", "explain_all", "primitive_target",
            "primitive_surface", "regress_to_primitives", "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
