@@ -1,6 +1,6 @@
 """What `[init] primitives` makes of a scene's warm start (the demo's by default). The warm
-start as `rfsdf demo` builds it (the fit's ``--seed``, 0 by default, calibrated by the scene's reference where it names
-one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
+start as `rfsdf demo` builds it (the fit's ``--seed``, 0 by default; calibrated by the scene's
+reference where it names one); its fragments (`recon.object_primitives.fragments`), each fitted by every primitive
 (`explain_all`: near fragments also as one), with the true object it lies on, its peaks, the
 best primitive and whether it replaces the fragment, the warm start's own median |f| over the
 same peaks (read as glints), and over the warm surface the views saw (within 6 mm of its peaks)
@@ -96,8 +96,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     settings = dataclasses.replace(DemoSettings(), scene=args.scene)
-    name = "" if args.scene == DemoSettings.scene else f"-{Path(args.scene).stem}"
-    out = args.out or Path(f"benchmarks/results/primitive-start{name}{f'-seed{args.seed}' if args.seed else ''}.json")
+    scene_part = "" if args.scene == DemoSettings.scene else f"-{Path(args.scene).stem}"
+    suffix = scene_part + (f"-seed{args.seed}" if args.seed else "")
+    out = args.out or Path(f"benchmarks/results/primitive-start{suffix}.json")
     data = demo_data(settings)
     scene = data.scene
     trainer, config = demo_warm_start(data, args.seed)
