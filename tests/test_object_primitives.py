@@ -214,27 +214,38 @@ def test_a_ball_with_peaks_behind_it_is_read_as_a_ball_on_the_lines_the_warm_sta
     assert clear.peaks_median_m < 2e-4
 
 
-def test_the_target_replaces_the_explained_fragments_only():
-    """Two fragments, a lumpy ball and a far box: with the ball explained by its sphere the
-    target is that sphere near the ball and the warm start near the box."""
+def test_the_target_replaces_the_explained_fragments_and_cuts_the_unplaced_ones():
+    """Three fragments, a lumpy ball, a far box and a 7 mm blob 6 cm off both with 3 peaks: with
+    the ball explained by its sphere and the blob unplaced (fewer than ``MIN_PEAKS`` peaks) the
+    target is that sphere near the ball, the warm start near the box, and where the blob was the
+    distance to what is left (within two voxels), not a few millimetres: no surface to keep."""
     ball = lambda p: (p - torch.tensor([0.05, 0.0, 0.0], dtype=p.dtype)).norm(dim=1) - 0.02 \
         + 0.002 * torch.sin(200 * p[:, 0])  # noqa: E731
     box = geo.Box([0.015, 0.015, 0.015], [-0.06, 0.0, 0.0])
-    warm = lambda p: torch.minimum(ball(p.double()), box(p.double())).to(p.dtype)  # noqa: E731
+    blob = geo.Sphere(0.007).translate([0.0, 0.06, 0.0])
+    parts = (ball, box, blob)
+    warm = lambda p: torch.stack([part(p.double()) for part in parts]).min(0).values.to(p.dtype)  # noqa: E731
     on_ball = _on(lambda p: ball(p).double(), 100, seed=3)[:MIN_PEAKS]  # the ball's peaks; none on the box
-    labels, grid, pieces = fragments(warm, [-0.1] * 3, [0.1] * 3, on_ball)
-    assert len(pieces) == 2
-    ball_piece = next(piece for piece in pieces if piece.surface[:, 0].mean() > 0)
-    box_piece = next(piece for piece in pieces if piece is not ball_piece)
+    on_blob = _on(lambda p: blob(p), 20, seed=5)[:3]
+    labels, grid, pieces = fragments(warm, [-0.1] * 3, [0.1] * 3, torch.cat([on_ball, on_blob]))
+    assert sorted(len(piece.peaks) for piece in pieces) == [0, 3, MIN_PEAKS]
+    ball_piece, blob_piece, box_piece = (next(piece for piece in pieces if len(piece.peaks) == count)
+                                         for count in (MIN_PEAKS, 3, 0))
     sphere = FramedPrimitive("sphere", [0.05, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02])
     cube = FramedPrimitive("box", [-0.06, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.02, 0.02, 0.02])
     fits = [FragmentFit(ball_piece, sphere, 0.0, 0.0, 1.0, 0.0), FragmentFit(box_piece, cube, 1.0, 0.01, 0.0, 0.0)]
     assert [fit.explains for fit in fits] == [True, False]
-    target = primitive_target(warm, labels, grid, fits)
+    target = primitive_target(warm, labels, grid, fits, (blob_piece,))
     near_ball = _on(lambda p: sphere(p), 500, seed=4).float()
     near_box = box_piece.surface.float()
     assert target(near_ball).abs().max() < 1e-4  # the sphere's surface, not the lumps'
     torch.testing.assert_close(target(near_box), warm(near_box))
+    at_blob = torch.cat([torch.tensor([[0.0, 0.06, 0.0]]), blob_piece.surface.float()])
+    nearest_left = torch.minimum(sphere(at_blob.double()), box(at_blob.double())).float()  # 58 mm and more
+    assert (target(at_blob) - nearest_left).abs().max() < 2 * 0.003, (target(at_blob), nearest_left)
+    alone = primitive_target(warm, labels, grid, [], (blob_piece,))  # only cut: the warm start elsewhere
+    torch.testing.assert_close(alone(near_box), warm(near_box))
+    assert alone(at_blob).min() > 0.05
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
 
 

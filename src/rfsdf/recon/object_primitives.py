@@ -31,10 +31,14 @@ primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (f
 ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside); elsewhere (an object no
 primitive is) the warm start stays. The views often see one object as several fragments (a torus's
 arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each other are
-fitted again as one, and a primitive that explains them all stands for their own fits. The new
-target is the warm start with the replaced fragments cut out, united with their primitives; the
-network is regressed onto it with f = 0 pinned at points of those primitives' surfaces, its rate
-decayed to zero so that it ends where the target is, not where the last batches left it.
+fitted again as one, and a primitive that explains them all stands for their own fits. A fragment
+of fewer than ``MIN_PEAKS`` peaks is no surface the views place: a glint's sidelobe or a double
+bounce the detection kept (the demo's seed-1 floater). The new target is the warm start with the
+replaced fragments and those cut out, united with the primitives; where a fragment is cut, the
+target is the distance to the interior left, so no trace of it stays a surface. The network is
+regressed onto it with f = 0 pinned at points of those primitives' surfaces, sampled near the
+target's zero set and the warm start's (the cut surfaces too), its rate decayed to zero so that it
+ends where the target is, not where the last batches left it.
 """
 
 from __future__ import annotations
@@ -404,25 +408,34 @@ def explain_all(pieces: list[Fragment], sdf, free: torch.Tensor, *, progress: bo
     return explain_together(fits, sdf, free)
 
 
-def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit]):
+def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit], unplaced: tuple[Fragment, ...] = ()):
     """The new target, points (N, 3) -> f [m] (their dtype and device; computed on the CPU, as
     ``sdf`` is): ``sdf`` (the warm start, held constant) with the fragments whose primitive
-    :attr:`~FragmentFit.explains` them cut out (a voxel of margin), united with those
-    primitives; ``sdf`` itself where none does."""
+    :attr:`~FragmentFit.explains` them and the ``unplaced`` ones cut out, united with those
+    primitives; ``sdf`` itself where none is cut. Cut out means bounded below by the distance to
+    the interior left on ``labels``' grid, less a voxel: a cut fragment far from the rest is as far
+    from the new surface as it is from the rest (a voxel-deep margin left a plateau a few
+    millimetres above zero there, which the network's regression kept a floater under)."""
     chosen = [fit for fit in fits if fit.explains]
-    if not chosen:
+    cut_labels = [label for fit in chosen for label in fit.fragment.labels] + [
+        label for piece in unplaced for label in piece.labels]
+    if not cut_labels:
         return sdf
-    region = np.isin(labels, [label for fit in chosen for label in fit.fragment.labels])
-    margin = FRAGMENT_VOXEL_M - ndimage.distance_transform_edt(~region) * FRAGMENT_VOXEL_M
-    cut = interpolated_sdf(torch.as_tensor(margin, dtype=torch.float32).flatten(), grid)
+    left = (labels > 0) & ~np.isin(labels, cut_labels)
+    if left.any():  # signed, on the voxel centres: outside the interior left, inside it negative
+        bound = ndimage.distance_transform_edt(~left) - ndimage.distance_transform_edt(left) - 1.0
+    else:  # nothing left: the box's diagonal
+        bound = np.full(labels.shape, float(np.linalg.norm(labels.shape)))
+    cut = interpolated_sdf(torch.as_tensor(bound * FRAGMENT_VOXEL_M, dtype=torch.float32).flatten(), grid)
     primitives = [fit.primitive for fit in chosen]
 
     def target(points: torch.Tensor) -> torch.Tensor:
         at = points.detach().cpu()
         with torch.no_grad():
             rest = torch.maximum(sdf(at.float()), cut(at.float()))
-            replaced = torch.stack([p(at) for p in primitives]).min(0).values.float()
-        return torch.minimum(rest, replaced).to(points)
+            if primitives:
+                rest = torch.minimum(rest, torch.stack([p(at) for p in primitives]).min(0).values.float())
+        return rest.to(points)
 
     return target
 
@@ -431,7 +444,9 @@ def primitive_surface(target, primitives: list[FramedPrimitive],
                       near: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Points (M, 3) float32 [m] on the ``primitives``' surfaces that are on ``target``'s too (within
     ``PIN_TOLERANCE_M``; not where another piece covers them), ``near`` (N, 3) [m] projected onto
-    each, and their primitive's outward unit normals there (M, 3) float32."""
+    each, and their primitive's outward unit normals there (M, 3) float32 (none without primitives)."""
+    if not primitives:
+        return torch.empty(0, 3), torch.empty(0, 3)
     on = [project_to_zero_set(primitive, near.double()) for primitive in primitives]
     facing = torch.cat([geo.normals(primitive, points) for primitive, points in zip(primitives, on)])
     on = torch.cat(on)
@@ -447,9 +462,12 @@ def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid
     held, over the fragments' ``grid``) by :func:`~rfsdf.recon.warm_start.fit_to_image` (``steps``
     at ``lr``, cosine-decayed with ``decay``), its reflectivity held where ``frozen``'s was and
     f = 0 pinned at :func:`primitive_surface` of the ``chosen`` fits' primitives, with its normals
-    there (Hermite data: ``PIN_NORMAL_WEIGHT``)."""
+    there (Hermite data: ``PIN_NORMAL_WEIGHT``). Its near points lie within a voxel of either zero
+    set, ``target``'s or ``frozen``'s: where a fragment was cut the network has a surface to lose,
+    which uniform points seldom reach (the demo's 11 mm floater got none in most steps)."""
     grid_points = grid.points()
-    near = grid_points[target(grid_points).abs() < FRAGMENT_VOXEL_M]
+    with torch.no_grad():
+        near = grid_points[torch.minimum(target(grid_points).abs(), frozen.sdf(grid_points).abs()) < FRAGMENT_VOXEL_M]
     pins, normals = primitive_surface(target, [fit.primitive for fit in chosen], near)
     reflectivity = lambda p: frozen.reflectivity(p.cpu()).to(p)  # noqa: E731  (held where it was)
     fit_to_image(field, grid.lower_m, grid.upper_m, target, reflectivity, steps=steps, lr=lr, batch=batch,
@@ -464,16 +482,18 @@ def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m,
                     caps: torch.Tensor | None = None, progress: bool = False) -> list[FragmentFit]:
     """Fit every fragment of ``field``'s surface (the range peaks ``points`` (N, 3) [m], unit
     directions ``towards`` their views (N, 3), and their glint ``caps`` (N, K, 3) [m] where they
-    are read as glints, see :class:`Fragment`) and, where a primitive explains its fragment,
-    :func:`regress_to_primitives` (``REGRESSION_STEPS`` from ``lr``, decayed). Returns the fits,
-    each with whether it replaced its fragment."""
+    are read as glints, see :class:`Fragment`) and, where a primitive explains its fragment or a
+    fragment has fewer than ``MIN_PEAKS`` peaks (cut), :func:`regress_to_primitives`
+    (``REGRESSION_STEPS`` from ``lr``, decayed). Returns the fits, each with whether it replaced its
+    fragment."""
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
     labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points, caps)
     free = free_space(points, towards, lower_m, upper_m, occluder=frozen.sdf)
     fits = explain_all(pieces, frozen.sdf, free, progress=progress)
     chosen = [fit for fit in fits if fit.explains]
-    if chosen:
-        regress_to_primitives(field, frozen, primitive_target(frozen.sdf, labels, grid, chosen), chosen, grid,
-                              steps=REGRESSION_STEPS, lr=lr, batch=batch, eikonal_weight=eikonal_weight,
+    unplaced = tuple(piece for piece in pieces if len(piece.peaks) < MIN_PEAKS)
+    if chosen or unplaced:
+        regress_to_primitives(field, frozen, primitive_target(frozen.sdf, labels, grid, chosen, unplaced), chosen,
+                              grid, steps=REGRESSION_STEPS, lr=lr, batch=batch, eikonal_weight=eikonal_weight,
                               near_share=near_share, generator=generator, decay=True, progress=progress)
     return fits
