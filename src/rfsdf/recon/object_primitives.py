@@ -463,8 +463,7 @@ def regress_to_primitives(field, frozen, target, chosen: list[FragmentFit], grid
     at ``lr``, cosine-decayed with ``decay``), its reflectivity held where ``frozen``'s was and
     f = 0 pinned at :func:`primitive_surface` of the ``chosen`` fits' primitives, with its normals
     there (Hermite data: ``PIN_NORMAL_WEIGHT``). Its near points lie within a voxel of either zero
-    set, ``target``'s or ``frozen``'s: where a fragment was cut the network has a surface to lose,
-    which uniform points seldom reach (the demo's 11 mm floater got none in most steps)."""
+    set, ``target``'s or ``frozen``'s: where a fragment was cut the network has a surface to lose."""
     grid_points = grid.points()
     with torch.no_grad():
         near = grid_points[torch.minimum(target(grid_points).abs(), frozen.sdf(grid_points).abs()) < FRAGMENT_VOXEL_M]
