@@ -8,9 +8,9 @@ import torch
 from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
-from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FREE_REACH_M, FREE_STEPS_M,
-                                           JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS,
-                                           FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
+from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FRAGMENT_VOXEL_M, FREE_REACH_M,
+                                           FREE_STEPS_M, JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
+                                           SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
                                            explain_fragment, explain_together, fit_fragment, fragments, free_space,
                                            joined, near_groups, primitive_surface, primitive_target)
 
@@ -242,7 +242,7 @@ def test_the_target_replaces_the_explained_fragments_and_cuts_the_unplaced_ones(
     torch.testing.assert_close(target(near_box), warm(near_box))
     at_blob = torch.cat([torch.tensor([[0.0, 0.06, 0.0]]), blob_piece.surface.float()])
     nearest_left = torch.minimum(sphere(at_blob.double()), box(at_blob.double())).float()  # 58 mm and more
-    assert (target(at_blob) - nearest_left).abs().max() < 2 * 0.003, (target(at_blob), nearest_left)
+    assert (target(at_blob) - nearest_left).abs().max() < 2 * FRAGMENT_VOXEL_M, (target(at_blob), nearest_left)
     alone = primitive_target(warm, labels, grid, [], (blob_piece,))  # only cut: the warm start elsewhere
     torch.testing.assert_close(alone(near_box), warm(near_box))
     assert alone(at_blob).min() > 0.05
