@@ -218,6 +218,23 @@ def test_accuracy_and_completeness_are_split_by_whether_the_true_surface_is_obse
     assert evaluate_scene(mesh, scene, samples=2_000).accuracy_near_observed_mm is None
 
 
+def test_the_objects_parts_of_the_observed_chamfer_sum_to_it_and_name_the_object_off(tmp_path):
+    """Only the left ball observed, the right one 3 mm too large: the right ball's part is half of
+    3 mm times its share of the predicted area (23^2 / (20^2 + 23^2)), the left's the meshing error,
+    and the parts sum to the observed Chamfer."""
+    from rfsdf.geometry import Union
+    from rfsdf.metrics import evaluate_scene
+
+    scene = _two_ball_scene(tmp_path)
+    mesh = extract_mesh(Union(Sphere(0.02, (-0.05, 0.0, 0.0)), Sphere(0.023, (0.05, 0.0, 0.0))),
+                        (-0.1,) * 3, (0.1,) * 3, 128)
+    result = evaluate_scene(mesh, scene, observed=lambda p, n: p[:, 0] < 0, samples=20_000)
+    left, right = result.objects["left"].observed_share_mm, result.objects["right"].observed_share_mm
+    assert left + right == pytest.approx(result.observed.chamfer_l1_mm, rel=1e-9)
+    assert right == pytest.approx(0.5 * 3.0 * 23**2 / (20**2 + 23**2), abs=0.15) and left < 0.25
+    assert evaluate_scene(mesh, scene, samples=2_000).objects["left"].observed_share_mm is None
+
+
 def test_the_observed_mask_is_traced_once_per_set_of_samples():
     """A demo scores five meshes against the same true-surface samples: the mask is computed
     once for them, and again when the samples change."""

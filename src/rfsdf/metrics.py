@@ -149,6 +149,10 @@ class ObjectMetrics:
     observed_fraction: float | None = None  # share of its true surface some view observes
     observed_recall: float | None = None  # recall over that observed part (None if unseen)
     bias_mm: float | None = None  # median signed distance of its predicted samples to it (+ bloated, - shrunk)
+    # its part of the observed Chamfer [mm]: half the summed distance of the predicted samples nearest
+    # it over all predicted samples, plus half its observed samples' summed distance over all observed
+    # ones; the objects' parts sum to ``SceneMetrics.observed.chamfer_l1_mm`` (None without a view)
+    observed_share_mm: float | None = None
 
     @property
     def found(self) -> bool:
@@ -277,7 +281,9 @@ def evaluate_scene(mesh: trimesh.Trimesh, scene, *, observed: Callable | None = 
             observed_fraction=None if seen is None else float(seen[own].mean()),
             observed_recall=float((d_ba[own & seen] < threshold_m).mean()) if seen is not None and seen[own].any()
             else None,
-            bias_mm=_median_signed_mm(obj.sdf, pa[mine]) if mine.any() else None)
+            bias_mm=_median_signed_mm(obj.sdf, pa[mine]) if mine.any() else None,
+            observed_share_mm=None if observed_metrics is None
+            else float(0.5 * (d_ab[mine].sum() / len(d_ab) + d_ba[own & seen].sum() / seen.sum()) * 1e3))
     return SceneMetrics(full, observed_metrics, observed_fraction, objects, **split)
 
 
