@@ -4,8 +4,8 @@ included) fitted on the same data and CLEAN image, for each seed of the fit. Per
 (the warm start's with any primitives, and the fit's steps'), the range peaks the fit holds and
 how far they lie from the true surface (beyond 2 mm, within 1 mm, amplitude-weighted), each
 fragment's primitive where they are fitted, the warm start's and the fit's observed-surface and
-whole-surface Chamfer-L1 with each object's, the share of the warm start's observed error the
-fit removes, and with a material head the demo's material readout.
+whole-surface Chamfer-L1 with each object's (and its part of the observed one), the share of the
+warm start's observed error the fit removes, and with a material head the demo's material readout.
 
 Usage: python benchmarks/fit_variants.py --variants '{"name": {recon overrides}, ...}'
        [--scene objects] [--seeds 0,1,2] [--device cpu] [--out benchmarks/results/fit-variants-SCENE.json]
@@ -76,7 +76,8 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
         metrics = score(mesh)
         return {"observed_mm": metrics.observed.chamfer_l1_mm, "whole_mm": metrics.full.chamfer_l1_mm,
                 "fscore": metrics.full.fscore, "completeness_seen_mm": metrics.completeness_observed_mm,
-                "objects_mm": {name: o.chamfer_l1_mm for name, o in metrics.objects.items()}}, mesh
+                "objects_mm": {name: o.chamfer_l1_mm for name, o in metrics.objects.items()},
+                "objects_observed_share_mm": {name: o.observed_share_mm for name, o in metrics.objects.items()}}, mesh
 
     rows = []
     for seed in seeds:
