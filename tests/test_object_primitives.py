@@ -9,10 +9,11 @@ from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FRAGMENT_VOXEL_M, FREE_REACH_M,
-                                           FREE_STEPS_M, JOIN_REACH_M, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
-                                           SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
-                                           explain_fragment, explain_together, fit_fragment, fragments, free_space,
-                                           joined, near_groups, primitive_surface, primitive_target)
+                                           FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M, LINK_MIN_PEAKS, MIN_PEAKS,
+                                           ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment,
+                                           FragmentFit, _Evidence, candidates, explain_fragment, explain_linked,
+                                           explain_together, fit_fragment, fragments, free_space, joined, linked_pairs,
+                                           near_groups, primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -133,6 +134,46 @@ def test_a_torus_seen_as_two_arcs_is_read_as_one_torus():
     assert len(both.peaks) == sum(len(piece.peaks) for piece in pieces) == len(both.caps)
     assert both.warm_median_m == pytest.approx(float(both.gaps(swollen).abs().median()))
     assert both.warm_median_m > 1e-3
+
+
+def test_fragments_are_linked_where_no_line_of_sight_passes_between_them():
+    """Three patches of peaks on the x axis, 5 and 10 cm apart: linked nearest first while no free
+    sample lies near the segment between their centroids; a line of sight crossing a segment cuts
+    that link, and a patch of fewer than LINK_MIN_PEAKS peaks is linked to nothing."""
+    patch = _on(geo.Sphere(0.005), 4 * LINK_MIN_PEAKS, seed=7)[:LINK_MIN_PEAKS]
+    pieces = [Fragment((label,), patch + torch.tensor([x, 0.0, 0.0], dtype=torch.float64), patch)
+              for label, x in enumerate([0.0, 0.05, 0.15], start=1)]
+    aside = torch.tensor([[0.0, 0.05, 0.0]], dtype=torch.float64)  # free space well off the axis
+    assert linked_pairs(pieces, aside) == [(0, 1), (1, 2), (0, 2)]
+    middle = (pieces[1].peaks.mean(0) + pieces[2].peaks.mean(0)) / 2  # a line of sight between the second and third
+    crossing = middle[None] + torch.tensor([0.0, 0.5 * LINK_CLEAR_M, 0.0], dtype=torch.float64)
+    assert linked_pairs(pieces, torch.cat([aside, crossing])) == [(0, 1)]
+    few = [pieces[0], Fragment((2,), pieces[1].peaks[1:], patch)] + pieces[2:]
+    assert linked_pairs(few, aside) == [(0, 2)]
+    assert linked_pairs(pieces, torch.empty(0, 3, dtype=torch.float64)) == []
+
+
+def test_a_capsule_seen_only_at_its_two_ends_is_read_as_one_capsule():
+    """Views 60 degrees or less from its axis see a capsule's two round ends and not its body
+    (counter's wood capsule): two fragments 6 cm apart, each its own fit; linked, one capsule stands
+    for both, its radius and half length within 0.75 mm of the truth's (the 1 mm swollen warm
+    surface pulls them out by 0.6)."""
+    truth = _turned(geo.Capsule([0, 0, -0.03], [0, 0, 0.03], 0.012))
+    frame = geo.rotation_from_vector(torch.tensor(TURN, dtype=torch.float64))
+    sin, cos = math.sin(math.radians(60)), math.cos(math.radians(60))
+    views = torch.tensor([[0, 0, 1], [sin, 0, cos], [0, sin, cos], [0, 0, -1], [-sin, 0, -cos], [0, -sin, -cos]],
+                         dtype=torch.float64) @ frame.T
+    peaks, towards = _seen_from(truth, views, count=300)
+    warm = _on(lambda p: truth(p) - 0.001, 1500, seed=2)
+    height = lambda p: ((p - torch.tensor(CENTRE, dtype=torch.float64)) @ frame)[:, 2]  # noqa: E731  (local z)
+    pieces = [Fragment((label,), peaks[end(height(peaks))], warm[end(height(warm))])
+              for label, end in ((1, lambda z: z > 0.025), (2, lambda z: z < -0.025))]
+    free = free_space(peaks, towards, [-0.2] * 3, [0.2] * 3)
+    assert linked_pairs(pieces, free) == [(0, 1)] and min(len(piece.peaks) for piece in pieces) >= LINK_MIN_PEAKS
+    (fit,) = explain_linked([explain_fragment(piece, free) for piece in pieces], truth, free)
+    assert fit.fragment.labels == (1, 2) and fit.primitive.kind == "capsule" and fit.explains
+    torch.testing.assert_close(fit.primitive.log_sizes.detach().exp(), torch.tensor([0.012, 0.03], dtype=torch.float64),
+                               rtol=0, atol=7.5e-4)
 
 
 def _fitted_alone(fragment: Fragment, free: torch.Tensor, steps: int) -> FramedPrimitive:

@@ -31,9 +31,11 @@ primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (f
 ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside); elsewhere (an object no
 primitive is) the warm start stays. The views often see one object as several fragments (a torus's
 arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each other are
-fitted again as one, and a primitive that explains them all stands for their own fits. A fragment
-of fewer than ``MIN_PEAKS`` peaks is no surface the views place: a glint's sidelobe or a double
-bounce the detection kept (the demo's seed-1 floater). The new target is the warm start with the
+fitted again as one, and a primitive that explains them all stands for their own fits; so are two
+farther ones with nothing the views saw between them and enough peaks each (``LINK_MIN_PEAKS``:
+the two ends of a capsule whose body no view sees). A fragment of fewer than ``MIN_PEAKS`` peaks
+is no surface the views place: a glint's sidelobe or a double bounce the detection kept (the
+demo's seed-1 floater). The new target is the warm start with the
 replaced fragments and those cut out, united with the primitives; where a fragment is cut, the
 target is the distance to the interior left, so no trace of it stays a surface. The network is
 regressed onto it with f = 0 pinned at points of those primitives' surfaces, sampled near the
@@ -60,7 +62,7 @@ from .warm_start import fit_to_image
 
 __all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "MIN_PEAKS", "FramedPrimitive", "Fragment",
            "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment",
-           "near_groups", "explain_together", "explain_all", "primitive_target",
+           "near_groups", "explain_together", "linked_pairs", "explain_linked", "explain_all", "primitive_target",
            "primitive_surface", "regress_to_primitives", "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
@@ -78,6 +80,14 @@ MIN_FRAGMENT_M3 = 1e-6  # smaller pieces (floaters) are left as they are: 1 cm^3
 # pieces (two tori and a cylinder, the last not explained), is one torus 0.28 mm off all 150 peaks;
 # its whole surface then stands 0.42 mm from the truth against 1.28 (docs/results/demo-quality.md)
 JOIN_REACH_M = 0.01
+# farther fragments are fitted as one too where no clear line of sight passes within LINK_CLEAR_M of
+# the segment between their peaks' centroids (its middle 80 %: the views saw nothing between them)
+# and each has at least LINK_MIN_PEAKS peaks. Counter's wood capsule is seen as its two ends, 86 mm
+# apart, which one capsule explains (0.47 mm median, its length within 1 mm of the truth); on the
+# demo (seeds 0 and 1) one box explained four pairs of two objects that passed the segment's test,
+# each pair with a side of 16 peaks or fewer (a box passes through any two small patches), while the
+# pairs of one object had 29 or more a side (docs/results/demo-quality.md, "Fragments linked across a gap")
+LINK_CLEAR_M, LINK_MIN_PEAKS = 3e-3, 20
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
 SURFACE_WEIGHT = 0.1
@@ -400,12 +410,47 @@ def explain_together(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[F
     return [fit for i, fit in enumerate(fits) if i not in replaced] + [fit for fit, _ in taken]
 
 
+def linked_pairs(pieces: list[Fragment], free: torch.Tensor) -> list[tuple[int, int]]:
+    """The index pairs of ``pieces`` of at least ``LINK_MIN_PEAKS`` peaks each with no free-space
+    sample of ``free`` (M, 3) [m] within ``LINK_CLEAR_M`` of the middle 80 % of the segment between
+    their peaks' centroids, the nearest pairs (their peaks' least distance) first."""
+    if not len(free):
+        return []
+    clear = cKDTree(free.numpy())
+    along = np.linspace(0.1, 0.9, 50)[:, None]
+    pairs = []
+    for i, j in zip(*np.triu_indices(len(pieces), 1)):
+        a, b = pieces[i].peaks, pieces[j].peaks
+        if min(len(a), len(b)) < LINK_MIN_PEAKS:
+            continue
+        start, end = a.mean(0).numpy(), b.mean(0).numpy()
+        if np.isinf(clear.query(start + along * (end - start), distance_upper_bound=LINK_CLEAR_M)[0]).all():
+            pairs.append((float(torch.cdist(a, b).min()), int(i), int(j)))
+    return [(i, j) for _, i, j in sorted(pairs)]
+
+
+def explain_linked(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[FragmentFit]:
+    """``fits`` with each of :func:`linked_pairs` of their fragments (with ``free``), nearest first
+    and each fit in one pair at most, fitted as one (:func:`joined` over ``sdf``,
+    :func:`explain_fragment`): where one primitive explains the pair, its fit stands for the two."""
+    used, together = set(), []
+    for i, j in linked_pairs([fit.fragment for fit in fits], free):
+        if i in used or j in used:
+            continue
+        fit = explain_fragment(joined([fits[i].fragment, fits[j].fragment], sdf), free)
+        if fit.explains:
+            used |= {i, j}
+            together.append(fit)
+    return [fit for i, fit in enumerate(fits) if i not in used] + together
+
+
 def explain_all(pieces: list[Fragment], sdf, free: torch.Tensor, *, progress: bool = False) -> list[FragmentFit]:
     """:func:`explain_fragment` of every one of ``pieces`` with peaks (one without has nothing to
-    explain), then :func:`explain_together` of the near ones (over ``sdf``, with ``free``)."""
+    explain), then :func:`explain_together` of the near ones and :func:`explain_linked` of the far
+    ones (over ``sdf``, with ``free``)."""
     seen = [piece for piece in pieces if len(piece.peaks)]
     fits = [explain_fragment(piece, free) for piece in progress_bar(seen, desc="primitives", enabled=progress)]
-    return explain_together(fits, sdf, free)
+    return explain_linked(explain_together(fits, sdf, free), sdf, free)
 
 
 def primitive_target(sdf, labels: np.ndarray, grid: Grid, fits: list[FragmentFit], unplaced: tuple[Fragment, ...] = ()):
