@@ -85,8 +85,10 @@ JOIN_REACH_M = 0.01
 # and each has at least LINK_MIN_PEAKS peaks. Counter's wood capsule is seen as its two ends, 86 mm
 # apart, which one capsule explains (0.47 mm median, its length within 1 mm of the truth); on the
 # demo (seeds 0 and 1) one box explained four pairs of two objects that passed the segment's test,
-# each pair with a side of 16 peaks or fewer (a box passes through any two small patches), while the
-# pairs of one object had 29 or more a side (docs/results/demo-quality.md, "Fragments linked across a gap")
+# each pair with a side of 16 peaks or fewer (a box passes through any two small patches); at 20 a side
+# none of those is tried, nor two of the notched block's own pairs (sides of 16), while the wood block's
+# (59 and 29) and counter's (71 and 74; 94 and 125) are (docs/results/demo-quality.md, "Fragments
+# linked across a gap")
 LINK_CLEAR_M, LINK_MIN_PEAKS = 3e-3, 20
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
