@@ -176,6 +176,30 @@ def test_a_capsule_seen_only_at_its_two_ends_is_read_as_one_capsule():
                                rtol=0, atol=7.5e-4)
 
 
+def test_a_box_seen_on_its_two_ends_off_each_other_is_read_along_its_faces():
+    """Seen only on its two end faces, each on a different half across it (the demo's wood block),
+    a box's points spread along a diagonal: a box along their principal axes stops turned, and a
+    cylinder wins; started along the faces' normal, a box explains them, its end faces within a
+    degree and its length within 0.2 mm of the truth's."""
+    truth = _turned(geo.Box([0.04, 0.025, 0.02]))
+    frame = geo.rotation_from_vector(torch.tensor(TURN, dtype=torch.float64))
+    peaks, towards = _seen_from(truth, torch.tensor([[1.0, 0, 0], [-1.0, 0, 0]], dtype=torch.float64) @ frame.T, 400)
+    warm = _on(lambda p: truth(p) - 0.001, 4000, seed=2)
+
+    def ends(points: torch.Tensor) -> torch.Tensor:
+        x, y = ((points - torch.tensor(CENTRE, dtype=torch.float64)) @ frame)[:, :2].T
+        return ((x > 0.035) & (y > 0)) | ((x < -0.035) & (y < 0))
+
+    keep = ends(peaks)
+    fit = explain_fragment(Fragment((1,), peaks[keep], warm[ends(warm)]),
+                           free_space(peaks[keep], towards[keep], [-0.2] * 3, [0.2] * 3))
+    assert fit.primitive.kind == "box" and fit.explains
+    axes = fit.primitive.describe()["axes"]
+    along = torch.tensor(axes, dtype=torch.float64) @ frame[:, 0]  # each axis's cosine to the truth's long one
+    assert float(along.abs().max()) > math.cos(math.radians(1))
+    assert abs(fit.primitive.log_sizes.detach().exp()[int(along.abs().argmax())] - 0.04) < 2e-4
+
+
 def _fitted_alone(fragment: Fragment, free: torch.Tensor, steps: int) -> FramedPrimitive:
     """The slow reference: each candidate by its own Adam for a third of the steps, the two lowest
     on for the rest, one at a time."""

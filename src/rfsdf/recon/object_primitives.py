@@ -100,6 +100,11 @@ CLEAR_DEPTH_M = 1e-3  # a line of sight the warm start holds deeper than this in
 FIT_STEPS, FIT_LR = 300, 1e-3  # Adam's steps, and its rate for the centre [m per step, about]
 ROTATION_LR_SCALE, SIZE_LR_SCALE = 3.0, 10.0  # the rotation's [rad] and the log sizes' rates, over FIT_LR
 SURVIVORS = 2  # the candidates fitted to the end, the lowest after a third of the steps
+# a box seen on two opposite faces starts along its faces' normal, not the points' spread: the demo's
+# wood block, seen on its two end faces whose peaks lie off each other across it, has principal
+# axes 8 degrees off its own, where a box stops 1.02 mm from the peaks and a cylinder (0.44) wins;
+# along the faces, the box 0.31 mm (docs/results/demo-quality.md, "Boxes along their faces")
+FACE_NEIGHBOURS = 16
 FREE_REACH_M = 0.02  # a fragment's fit sees the free space within this of its points' box [m]
 # a few lines of sight of peaks not exactly on the surface cross it: 0.1 % of the clear lines' samples
 # near the demo's metal ball (0.6 % of every line's), whose sphere scores 0.18 mm against the truth
@@ -185,18 +190,43 @@ def _rotation_vector(frame: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(frame).as_rotvec()
 
 
-def candidates(points: np.ndarray, kinds=PRIMITIVE_KINDS) -> list[FramedPrimitive]:
-    """Starting primitives of ``kinds`` for a fragment's points (N, 3) [m], from their principal
-    axes: a sphere, a box, and a cylinder, a capsule (its axis at least a voxel long) and a torus
-    about each axis, centred on the middle of the points' 2-98 % range along the axes and sized by
-    it (a fragment seen on one side has its centroid there, not at its middle)."""
+def _principal_axes(points: np.ndarray) -> np.ndarray:
+    """(3, 3) the principal axes (columns, largest variance first) of points (N, 3)."""
     spread = points - points.mean(0)
-    _, axes = np.linalg.eigh(spread.T @ spread / len(points))
-    axes = axes[:, ::-1]  # largest variance first
+    return np.linalg.eigh(spread.T @ spread / len(points))[1][:, ::-1]
+
+
+def _face_axes(points: np.ndarray) -> np.ndarray:
+    """(3, 3) a box's axes (columns) read off points (N, 3) [m] on its faces: first the normal most
+    of them share (the top eigenvector of the sum of n n^T over their normals, each the least
+    principal axis of its ``FACE_NEIGHBOURS`` nearest points), then the points' principal axes
+    across it."""
+    _, near = cKDTree(points).query(points, min(FACE_NEIGHBOURS, len(points)))
+    patches = points[near] - points[near].mean(1, keepdims=True)
+    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", patches, patches))[1][:, :, 0]
+    first = np.linalg.eigh(normals.T @ normals)[1][:, -1]
+    across = np.linalg.svd(np.eye(3) - np.outer(first, first))[0][:, :2]  # an orthonormal basis of the plane
+    return np.column_stack([first, across @ _principal_axes(points @ across)])
+
+
+def _extent(points: np.ndarray, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The middle (3,) [m] of points' (N, 3) [m] 2-98 % range along ``axes`` (3, 3) (columns) and
+    its half widths (3,) [m], at least 2 mm (a fragment seen on one side has its centroid there, not
+    at its middle)."""
     low, high = np.percentile(points @ axes, [2, 98], axis=0)
-    centre, half = axes @ ((low + high) / 2), np.maximum((high - low) / 2, 2e-3)
+    return axes @ ((low + high) / 2), np.maximum((high - low) / 2, 2e-3)
+
+
+def candidates(points: np.ndarray, kinds=PRIMITIVE_KINDS) -> list[FramedPrimitive]:
+    """Starting primitives of ``kinds`` for a fragment's points (N, 3) [m], over their
+    :func:`_extent`: a sphere; a box along their principal axes and one along the faces they lie on
+    (:func:`_face_axes`); and a cylinder, a capsule (its axis at least a voxel long) and a torus
+    about each principal axis."""
+    axes, faces = _principal_axes(points), _face_axes(points)
+    (centre, half), (face_centre, face_half) = _extent(points, axes), _extent(points, faces)
     starts = [FramedPrimitive("sphere", centre, np.full(3, 1e-6), [half.max()]),
-              FramedPrimitive("box", centre, _rotation_vector(axes), half)]
+              FramedPrimitive("box", centre, _rotation_vector(axes), half),
+              FramedPrimitive("box", face_centre, _rotation_vector(faces), face_half)]
     for a in range(3):
         across = [(a + 1) % 3, (a + 2) % 3]
         rotation = _rotation_vector(axes[:, across + [a]])
