@@ -612,7 +612,7 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
 
 
 def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(sphere_data, tmp_path, monkeypatch):
-    """``[init] primitives`` (off by default) runs primitive_start on the warm start's field
+    """``[init] primitives`` (on by default) runs primitive_start on the warm start's field
     with its range peaks and the directions towards their views; with ``peak_cone_deg`` each
     peak's glint cap too, on the sphere of its range (its distance from its view's centre)."""
     import rfsdf.recon.trainer as trainer_module
@@ -637,7 +637,7 @@ def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(s
     assert seen["caps"].shape == (len(ranges), 19, 3)  # two rings about each peak
     torch.testing.assert_close((seen["caps"] - centres[:, None]).norm(dim=2), ranges[:, None].expand(-1, 19))
     torch.testing.assert_close(seen["caps"][:, 0], seen["points"])
-    assert ReconConfig().init.primitives is False and ReconConfig().init.peak_cone_deg == 0
+    assert ReconConfig().init.primitives is True and ReconConfig().init.peak_cone_deg == 0.25
 
 def _known(*objects) -> Scene:
     return Scene(SceneSpec.model_validate({"name": "known", "bounds": {"lower_m": [-0.1] * 3, "upper_m": [0.1] * 3},
@@ -751,7 +751,7 @@ def test_the_fit_can_hold_its_range_peaks_as_glints(sphere_data, tmp_path):
     assert float(terms["peaks"].detach()) == pytest.approx(1000.0 * float((gaps.abs() * amplitude).sum()
                                                                           / amplitude.sum()), rel=1e-5)
     assert (gaps <= on_lines + 1e-7).all() and (gaps < on_lines - 1e-5).any()  # the least f over a cap
-    assert trainer.peak_caps(0.0) is None and ReconConfig().loss.peak_cone_deg == 0
+    assert trainer.peak_caps(0.0) is None and ReconConfig().loss.peak_cone_deg == 0.25
     scanned = dataclasses.replace(data.acquisition, scans=torch.zeros(data.acquisition.shape[0], dtype=torch.int64))
     trainer = Trainer(Problem(Measurements(scanned, data.data), _grid(10)), ReconConfig.model_validate(settings),
                       tmp_path / "scanned")

@@ -101,8 +101,9 @@ QUICK = DemoSettings(
     voxel_m=0.015, max_surface_samples=20_000, samples_per_wavelength=1.5, mesh_resolution=40, metric_samples=5_000,
     # a sixth of CLEAN's time; its residual floor (the detection threshold) higher than 0.05
     clean_components=50,
+    # without the primitives (their fits took 36 s of the quick demo's 73 on 2 cores)
     recon={"field": {"width": 48, "depth": 4},
-           "init": {"steps": 40, "batch": 2048},
+           "init": {"steps": 40, "batch": 2048, "primitives": False},
            "render": {"element_step": 4, "spacing_m": 0.004, "refresh_every": 3},
            "sampling": {"data_batch": 1024, "eikonal_batch": 512, "views_per_step": 2},
            "train": {"steps": 6, "checkpoint_every": 3}},
@@ -115,12 +116,13 @@ QUICK = DemoSettings(
 # against 4.9: docs/guide/radar.md, "Scanned views"), its range peaks each on the
 # sub-aperture before it; the fit on every 16th frame and every
 # 8th frequency (68 frames a scan, 8 frequencies over the same band: the same scores as
-# every 4th's, in 0.55x the step; docs/guide/radar.md, "The demo on scans")
+# every 4th's, in 0.55x the step; docs/guide/radar.md, "The demo on scans"); without the
+# primitives, which were measured on the demo's views and not yet on scans
 SCANNED = DemoSettings(
     scene="handheld", radar="sar-77g", voxel_m=0.003,
-    recon={"init": {"method": "mf", "threshold": 0.1},
+    recon={"init": {"method": "mf", "threshold": 0.1, "primitives": False},
            "render": {"element_step": 4, "frequency_step": 8},
-           "train": {"steps": 40}},
+           "train": {"steps": 40, "material_lr_scale": 100}},
 )
 
 
