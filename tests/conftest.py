@@ -50,7 +50,7 @@ def spot_path():
 @pytest.fixture
 def tiny_files(tmp_path):
     """In tmp_path: data.h5 (a point target seen by 4 single-antenna views), image.h5 (its MF
-    image on a 10^3 grid) and tiny.toml (a seconds-long reconstruction config)."""
+    image on a 10^3 grid) and tiny.toml (a seconds-long reconstruction config, the warm start alone)."""
     centres = torch.tensor([[0.5, 0, 0], [-0.5, 0, 0], [0, 0.5, 0], [0, -0.5, 0]], dtype=torch.float64)
     acq = Acquisition(centres[:, None], centres[:, None], torch.linspace(77e9, 81e9, 8), -centres / 0.5)
     y = SensingOperator(acq).forward(torch.tensor([[0.01, 0.0, 0.0]]), torch.ones(1, dtype=torch.complex64))
@@ -59,7 +59,7 @@ def tiny_files(tmp_path):
     write_image(tmp_path / "image.h5", matched_filter(m, Grid((-0.05,) * 3, (0.05,) * 3, (10, 10, 10))))
     (tmp_path / "tiny.toml").write_text(
         '[field]\nwidth = 16\ndepth = 3\nlevels = 1\n[render]\nelement_step = 1\nrefresh_every = 3\n'
-        '[init]\nmethod = "mf"\nthreshold = 0.06\nsteps = 20\nbatch = 256\n'
+        '[init]\nmethod = "mf"\nthreshold = 0.06\nsteps = 20\nbatch = 256\nprimitives = false\n'
         '[sampling]\nviews_per_step = 2\ndata_batch = 128\neikonal_batch = 64\n'
         '[train]\nsteps = 6\ncheckpoint_every = 3\nmesh_resolution = 24\n')
     return tmp_path
