@@ -6,6 +6,8 @@ how far they lie from the true surface (beyond 2 mm, within 1 mm, amplitude-weig
 fragment's primitive where they are fitted, the warm start's and the fit's observed-surface and
 whole-surface Chamfer-L1 with each object's (and its part of the observed one), the share of the
 warm start's observed error the fit removes, and with a material head the demo's material readout.
+A variant's ``"gain"`` (beside its ReconConfig tables) holds that radar gain in the fit, as a
+calibration capture gives it (1.0 for simulated data), instead of fitting one at each step.
 
 Usage: python benchmarks/fit_variants.py --variants '{"name": {recon overrides}, ...}'
        [--scene objects] [--seeds 0,1,2] [--device cpu] [--out benchmarks/results/fit-variants-SCENE.json]
@@ -82,12 +84,14 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
     rows = []
     for seed in seeds:
         for variant, overrides in variants.items():
+            overrides = dict(overrides)
+            gain = overrides.pop("gain", None)
             train = {**settings.recon.get("train", {}), **overrides.get("train", {}), "seed": seed, "device": str(device)}
             config = with_scene_reference(ReconConfig.model_validate({**settings.recon, **overrides, "train": train}),
-                                          scene, settings)
+                                          scene, dataclasses.replace(settings, gain=gain))
             reference = (None if config.calibration.reference is None
                          else scene_reference(scene, config.calibration, data.measurements.acquisition))
-            problem = Problem(data.measurements, grid, clean=clean, image=data.image,
+            problem = Problem(data.measurements, grid, clean=clean, image=data.image, gain=gain,
                               known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
             with tempfile.TemporaryDirectory() as folder:
                 trainer = Trainer(problem, config, folder)
@@ -96,7 +100,7 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
                 seconds = round(time.perf_counter() - clock, 1)
                 (warm, _), (fitted, mesh) = scores(fit.warm_field), scores(fit.field)
                 steps_s = round(sum(record.seconds for record in trainer.log), 1)
-                row = {"seed": seed, "variant": variant, "overrides": overrides, "fit_s": seconds,
+                row = {"seed": seed, "variant": variant, "overrides": overrides, "gain": gain, "fit_s": seconds,
                        "start_s": round(seconds - steps_s, 1), "steps_s": steps_s,
                        **_peak_distances(trainer, scene), "primitives": _primitives(trainer),
                        "warm_start": warm, "fit": fitted,
