@@ -163,7 +163,8 @@ def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, 
     """One estimate per connected component of the reconstruction's mesh (largest first),
     from samples of its surface, the observed share by the views' facing and cones (no
     shadows: tracing the neural field for every sample and view would cost more than the fit)."""
-    components = sorted(mesh.split(only_watertight=False), key=lambda m: -m.area)
+    # a component of no area (degenerate faces of marching cubes) has no surface to read
+    components = sorted((c for c in mesh.split(only_watertight=False) if c.area > 0), key=lambda m: -m.area)
     estimates = []
     for index, component in enumerate(components):
         points, faces = trimesh.sample.sample_surface(component, _COMPONENT_SAMPLES, seed=seed + index)
