@@ -27,7 +27,6 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import torch
 from demo_data import demo_data
 from object_brightness import object_gains
