@@ -3,12 +3,15 @@
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 import torch
+import trimesh
 
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
-    MIN_OBSERVED_FRACTION, class_accuracy, eps_of_reflectivity, object_materials, scene_reference,
+    MIN_OBSERVED_FRACTION, class_accuracy, component_materials, eps_of_reflectivity, object_materials,
+    scene_reference,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
@@ -16,6 +19,7 @@ from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig, Trainer, amplitude_loss
 from rfsdf.recon.calibration import check_reference
 from rfsdf.recon.losses import material_cross_entropy, material_entropy
+from rfsdf.recon.trainer import initial_field
 from rfsdf.recon.warm_start import fit_to_image
 from test_recon import _two_balls
 
@@ -163,3 +167,19 @@ def test_a_metal_reference_calibrates_the_gain_and_a_wrong_one_is_flagged(two_ba
         calibration, _ = _calibrated_two_balls(two_balls_start, tmp_path, wrong)
         assert calibration.warning() is not None and wrong in calibration.warning(), calibration
 
+
+
+def test_a_mesh_component_without_area_is_not_read(tiny_radar):
+    """Marching cubes can leave a component of degenerate faces: it has no surface to sample,
+    and read, its area weights were 0/0 (NaN probabilities, which metrics.json refuses). Only
+    the ball is read, its probabilities a distribution."""
+    grid = Grid.from_voxel((-0.1,) * 3, (0.1,) * 3, 0.01)
+    field = initial_field(grid, ReconConfig(), "cpu")
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.03)
+    sliver = trimesh.Trimesh([[0.06, 0, 0], [0.07, 0, 0], [0.08, 0, 0]], [[0, 1, 2]], process=False)
+    mesh = trimesh.util.concatenate([ball, sliver])
+    assert len(mesh.split(only_watertight=False)) == 2
+    (estimate,) = component_materials(field, mesh, tiny_radar.acquisition())
+    assert f"({ball.area * 1e4:.1f} cm^2)" in estimate.name
+    probabilities = np.array(list(estimate.probabilities.values()))
+    assert np.isfinite(probabilities).all() and probabilities.sum() == pytest.approx(1.0, abs=1e-6)
