@@ -7,13 +7,15 @@ import torch
 
 from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
+from rfsdf.recon import object_primitives
 from rfsdf.recon.glints import glint_caps
-from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FIT_LR, FRAGMENT_VOXEL_M, FREE_REACH_M,
-                                           FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M, LINK_MIN_PEAKS, MIN_PEAKS,
-                                           ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment,
-                                           FragmentFit, _Evidence, candidates, explain_fragment, explain_linked,
-                                           explain_together, fit_fragment, fragments, free_space, joined, linked_pairs,
-                                           near_groups, primitive_surface, primitive_target)
+from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FALLBACK_MARGIN, FIT_LR,
+                                           FRAGMENT_VOXEL_M, FREE_REACH_M, FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M,
+                                           LINK_MIN_PEAKS, MIN_FRAGMENT_M3, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
+                                           SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
+                                           explain_fragment, explain_linked, explain_together, fit_fragment, fragments,
+                                           free_space, joined, linked_pairs, near_groups, primitive_surface,
+                                           primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -151,6 +153,29 @@ def test_fragments_are_linked_where_no_line_of_sight_passes_between_them():
     few = [pieces[0], Fragment((2,), pieces[1].peaks[1:], patch)] + pieces[2:]
     assert linked_pairs(few, aside) == [(0, 2)]
     assert linked_pairs(pieces, torch.empty(0, 3, dtype=torch.float64)) == []
+
+
+@pytest.mark.parametrize("first_median, capsule_median, chosen", [
+    (0.5e-3, 0.4e-3, "cylinder"),  # both explain: the capsule not under FALLBACK_MARGIN of the cylinder
+    (0.5e-3, 0.2e-3, "capsule"),
+    (0.61e-3, 0.554e-3, "capsule"),  # the demo's jar on AVX-512: the cylinder misses, the capsule explains
+    (0.7e-3, 0.65e-3, "cylinder"),  # neither explains: the first stays (and replaces nothing)
+])
+def test_a_capsule_replaces_the_other_kinds_where_they_miss_or_it_is_clearly_nearer(monkeypatch, first_median,
+                                                                                    capsule_median, chosen):
+    """The fallback's rule (``explain_fragment``): a capsule stands where it explains the fragment
+    and the other kinds' fit does not, or where it lies under ``FALLBACK_MARGIN`` of their median
+    gap; their fit otherwise."""
+    fragment = Fragment((1,), torch.zeros(2 * MIN_PEAKS, 3, dtype=torch.float64), torch.zeros(0, 3))
+    medians = {"cylinder": first_median, "capsule": capsule_median}
+
+    def fitted(piece, free, *, kinds):
+        kind = "capsule" if list(kinds) == ["capsule"] else "cylinder"
+        return FragmentFit(piece, FramedPrimitive(kind, [0.0] * 3, [0.0, 0.0, 1e-6], [0.01, 0.02]), 0.0,
+                           medians[kind], 0.9, 0.0)
+
+    monkeypatch.setattr(object_primitives, "fit_fragment", fitted)
+    assert explain_fragment(fragment, torch.zeros(0, 3)).primitive.kind == chosen
 
 
 def test_a_capsule_seen_only_at_its_two_ends_is_read_as_one_capsule():
@@ -312,6 +337,21 @@ def test_the_target_replaces_the_explained_fragments_and_cuts_the_unplaced_ones(
     torch.testing.assert_close(alone(near_box), warm(near_box))
     assert alone(at_blob).min() > 0.05
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
+
+
+def test_a_sliver_is_a_fragment_when_it_holds_enough_peaks():
+    """A warm start's piece smaller than ``MIN_FRAGMENT_M3`` is a floater, left as it is, unless
+    the views placed ``MIN_PEAKS`` peaks on it: the demo's wood block, its far face a sliver of
+    the warm start, was otherwise fitted from its near face alone."""
+    ball = geo.Sphere(0.02).translate([0.04, 0.0, 0.0])
+    sliver = geo.Box([0.008, 0.008, 0.002], [-0.04, 0.0, 0.0])
+    warm = lambda p: torch.minimum(ball(p.double()), sliver(p.double())).to(p.dtype)  # noqa: E731
+    on_sliver = _on(sliver, 400, seed=1)
+    labels, grid, pieces = fragments(warm, [-0.08] * 3, [0.08] * 3, on_sliver[:MIN_PEAKS])
+    volumes = sorted(int((labels == label).sum()) * FRAGMENT_VOXEL_M ** 3 for label in range(1, labels.max() + 1))
+    assert len(volumes) == 2 and volumes[0] < MIN_FRAGMENT_M3 < volumes[1]  # the sliver is below the volume
+    assert sorted(len(piece.peaks) for piece in pieces) == [0, MIN_PEAKS]
+    assert [len(piece.peaks) for piece in fragments(warm, [-0.08] * 3, [0.08] * 3, on_sliver[:MIN_PEAKS - 1])[2]] == [0]
 
 
 def test_a_primitive_nearer_the_glints_than_the_warm_start_replaces_it():

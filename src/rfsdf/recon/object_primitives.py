@@ -46,6 +46,7 @@ ends where the target is, not where the last batches left it.
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,10 +61,10 @@ from ..progress import progress_bar
 from .glints import cap_minimum
 from .warm_start import fit_to_image
 
-__all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "MIN_PEAKS", "FramedPrimitive", "Fragment",
-           "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment", "explain_fragment",
-           "near_groups", "explain_together", "linked_pairs", "explain_linked", "explain_all", "primitive_target",
-           "primitive_surface", "regress_to_primitives", "primitive_start"]
+__all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "MIN_PEAKS", "FramedPrimitive",
+           "Fragment", "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment",
+           "explain_fragment", "near_groups", "explain_together", "linked_pairs", "explain_linked", "explain_all",
+           "primitive_target", "primitive_surface", "regress_to_primitives", "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
 # a capsule's rounded ends differ from a cylinder's flat ones only where the views see the ends, so
@@ -75,7 +76,12 @@ PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
 # ends in the tests: 0.09 mm against a cylinder's 0.35; docs/results/demo-quality.md, sixtieth session)
 FALLBACK_KINDS, FALLBACK_MARGIN = ("capsule",), 0.5
 FRAGMENT_VOXEL_M = 0.003  # the grid the warm start's interior is labelled on [m]
-MIN_FRAGMENT_M3 = 1e-6  # smaller pieces (floaters) are left as they are: 1 cm^3
+# smaller pieces (floaters) are left as they are, unless they hold MIN_PEAKS peaks: the views placed a
+# surface there. The demo's wood block is seen on its two end faces; at seed 0 on an AVX-512 CPU the warm
+# start holds the far one as two slivers of 0.86 and 0.65 cm^3 with 22 and 12 peaks (2.84 cm^3, 29 peaks
+# where ATen runs its AVX2 kernels), and without them a cylinder took the near face alone, 11 mm off
+# the block (docs/results/demo-quality.md, "A fragment is its peaks as well as its volume")
+MIN_FRAGMENT_M3 = 1e-6
 # fragments whose surfaces come this near are also fitted as one: the demo's torus, seen as three
 # pieces (two tori and a cylinder, the last not explained), is one torus 0.28 mm off all 150 peaks;
 # its whole surface then stands 0.42 mm from the truth against 1.28 (docs/results/demo-quality.md)
@@ -280,30 +286,41 @@ class FragmentFit:
 def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor,
               caps: torch.Tensor | None = None) -> tuple[np.ndarray, Grid, list[Fragment]]:
     """The labelled interior of ``sdf`` (float32 points -> f [m]) on a ``FRAGMENT_VOXEL_M`` grid
-    over the box, that grid, and its fragments of at least ``MIN_FRAGMENT_M3``, each with the
-    ``peaks`` (P, 3) [m] (and their ``caps`` (P, K, 3) with ``sdf``'s median |f| over them, see
-    :class:`Fragment`) and the zero-set points within ``OWNER_REACH_M`` of its voxels."""
+    over the box, that grid, and its fragments, the pieces of at least ``MIN_FRAGMENT_M3`` or with
+    ``MIN_PEAKS`` of the ``peaks`` (P, 3) [m] in reach, each with its peaks (and their ``caps``
+    (P, K, 3) with ``sdf``'s median |f| over them, see :class:`Fragment`) and the zero-set points
+    within ``OWNER_REACH_M`` of its voxels."""
     grid = Grid.from_voxel(lower_m, upper_m, FRAGMENT_VOXEL_M)
     points = grid.points()
     with torch.no_grad():
         values = torch.cat([sdf(chunk) for chunk in points.split(1 << 16)])
     labels, count = ndimage.label((values < 0).reshape(grid.shape).numpy())
     volumes = ndimage.sum(np.ones(grid.shape), labels, range(1, count + 1)) * float(np.prod(grid.voxel_m))
-    kept = [label for label, volume in zip(range(1, count + 1), volumes) if volume >= MIN_FRAGMENT_M3]
-    inside = np.isin(labels, kept).reshape(-1)
-    voxels = cKDTree(points[torch.from_numpy(inside)].numpy())
-    owners = np.append(labels.reshape(-1)[inside], 0)  # a point with no voxel in reach: index len(voxels), label 0
-    surface = project_to_zero_set(sdf, points[values.abs() < FRAGMENT_VOXEL_M]).double()
     peaks = peaks.double()
-
-    def owner(x: torch.Tensor) -> torch.Tensor:
-        return torch.from_numpy(owners[voxels.query(x.numpy(), distance_upper_bound=OWNER_REACH_M)[1]])
-
+    held = np.bincount(_owners(points, labels, range(1, count + 1))(peaks).numpy(), minlength=count + 1)[1:]
+    kept = [label for label, volume, n in zip(range(1, count + 1), volumes, held)
+            if volume >= MIN_FRAGMENT_M3 or n >= MIN_PEAKS]
+    owner = _owners(points, labels, kept)
+    surface = project_to_zero_set(sdf, points[values.abs() < FRAGMENT_VOXEL_M]).double()
     surface_owner, peak_owner = owner(surface), owner(peaks)
     caps = None if caps is None else caps.double()
     return labels, grid, [Fragment((label,), peaks[mine], surface[surface_owner == label],
                                    None if caps is None else caps[mine], _warm_median(sdf, caps, mine))
                           for label in kept for mine in [peak_owner == label]]
+
+
+def _owners(points: torch.Tensor, labels: np.ndarray, kept) -> Callable[[torch.Tensor], torch.Tensor]:
+    """A map from points (N, 3) [m] to the label (N,) int of the nearest voxel of ``points`` (the
+    grid's, (V, 3) [m]) whose ``labels`` (the grid's shape) is one of ``kept``, within
+    ``OWNER_REACH_M``; 0 where there is none."""
+    inside = np.isin(labels, list(kept)).reshape(-1)
+    voxels = cKDTree(points[torch.from_numpy(inside)].numpy())
+    owners = np.append(labels.reshape(-1)[inside], 0)  # no voxel in reach: index len(voxels), label 0
+
+    def owner(x: torch.Tensor) -> torch.Tensor:
+        return torch.from_numpy(owners[voxels.query(x.numpy(), distance_upper_bound=OWNER_REACH_M)[1]])
+
+    return owner
 
 
 def _warm_median(sdf, caps: torch.Tensor | None, mine: torch.Tensor) -> float:
