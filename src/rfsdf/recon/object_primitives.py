@@ -80,7 +80,7 @@ FRAGMENT_VOXEL_M = 0.003  # the grid the warm start's interior is labelled on [m
 # surface there. The demo's wood block is seen on its two end faces; at seed 0 on an AVX-512 CPU the warm
 # start holds the far one as two slivers of 0.86 and 0.65 cm^3 with 22 and 12 peaks (2.84 cm^3, 29 peaks
 # where ATen runs its AVX2 kernels), and without them a cylinder took the near face alone, 11 mm off
-# the block (docs/results/demo-quality.md, "A fragment is its peaks as well as its volume")
+# the block (docs/results/demo-quality.md, "The same code on another CPU")
 MIN_FRAGMENT_M3 = 1e-6
 # fragments whose surfaces come this near are also fitted as one: the demo's torus, seen as three
 # pieces (two tori and a cylinder, the last not explained), is one torus 0.28 mm off all 150 peaks;
@@ -286,8 +286,8 @@ class FragmentFit:
 def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor,
               caps: torch.Tensor | None = None) -> tuple[np.ndarray, Grid, list[Fragment]]:
     """The labelled interior of ``sdf`` (float32 points -> f [m]) on a ``FRAGMENT_VOXEL_M`` grid
-    over the box, that grid, and its fragments, the pieces of at least ``MIN_FRAGMENT_M3`` or with
-    ``MIN_PEAKS`` of the ``peaks`` (P, 3) [m] in reach, each with its peaks (and their ``caps``
+    over the box, that grid, and its fragments, the pieces of at least ``MIN_FRAGMENT_M3`` or
+    nearest to ``MIN_PEAKS`` of the ``peaks`` (P, 3) [m], each with its peaks (and their ``caps``
     (P, K, 3) with ``sdf``'s median |f| over them, see :class:`Fragment`) and the zero-set points
     within ``OWNER_REACH_M`` of its voxels."""
     grid = Grid.from_voxel(lower_m, upper_m, FRAGMENT_VOXEL_M)
