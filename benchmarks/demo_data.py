@@ -38,6 +38,17 @@ def demo_data(settings: DemoSettings | None = None, device=None) -> DemoData:
     return DemoData(settings, scene, measurements, matched_filter(measurements, grid, device=device))
 
 
+def calibrated_problem(data: DemoData, config: ReconConfig, clean, *, gain: float | None = None):
+    """The fit's :class:`Problem` on ``data`` with its ``clean`` image (and a known ``gain``), the
+    materials of ``config``'s calibration reference known where it names one; and that reference
+    (None without one)."""
+    reference = (None if config.calibration.reference is None
+                 else scene_reference(data.scene, config.calibration, data.measurements.acquisition))
+    problem = Problem(data.measurements, data.image.grid, clean=clean, image=data.image, gain=gain,
+                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
+    return problem, reference
+
+
 def demo_warm_start(data: DemoData, seed: int = 0) -> tuple[Trainer, ReconConfig]:
     """The warm start as ``rfsdf demo`` builds it on ``data`` (the default reconstruction, calibrated
     by the scene's reference where it names one; ``seed`` the fit's, ``[train] seed``): the trainer

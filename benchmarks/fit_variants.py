@@ -25,18 +25,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from demo_data import demo_data
+from demo_data import calibrated_problem, demo_data
 from seeds import _materials
 
 from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.device import resolve_device
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.recon import ReconConfig, Trainer
 
 
 def _peak_distances(trainer: Trainer, scene) -> dict[str, float]:
@@ -89,10 +88,7 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
             train = {**settings.recon.get("train", {}), **overrides.get("train", {}), "seed": seed, "device": str(device)}
             config = with_scene_reference(ReconConfig.model_validate({**settings.recon, **overrides, "train": train}),
                                           scene, dataclasses.replace(settings, gain=gain))
-            reference = (None if config.calibration.reference is None
-                         else scene_reference(scene, config.calibration, data.measurements.acquisition))
-            problem = Problem(data.measurements, grid, clean=clean, image=data.image, gain=gain,
-                              known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
+            problem, reference = calibrated_problem(data, config, clean, gain=gain)
             with tempfile.TemporaryDirectory() as folder:
                 trainer = Trainer(problem, config, folder)
                 clock = time.perf_counter()

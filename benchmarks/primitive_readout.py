@@ -28,23 +28,23 @@ import tempfile
 from pathlib import Path
 
 import torch
-from demo_data import demo_data
+from demo_data import calibrated_problem, demo_data
 from object_brightness import object_gains
 from seeds import _materials
 
 from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import MIN_OBSERVED_FRACTION, _observed_objects, scene_reference
+from rfsdf.material_estimates import MIN_OBSERVED_FRACTION, _observed_objects
 from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.mesh import extract_mesh
 from rfsdf.radar.clean import clean_image
-from rfsdf.recon import Problem, ReconConfig, Trainer
+from rfsdf.recon import ReconConfig, Trainer
 from rfsdf.recon.render import CoherentRenderer
 
 PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface is the primitive's
 
 
-def primitive_surface(network_sdf, primitives):
+def network_with_primitives(network_sdf, primitives):
     """(N, 3) -> (N,) [m]: the primitives' SDF within ``PRIMITIVE_BAND_M`` of them, the network's elsewhere."""
     def sdf(points: torch.Tensor) -> torch.Tensor:
         network = network_sdf(points.float()).double()
@@ -68,10 +68,7 @@ def main() -> None:
     clean = clean_image(data.measurements, data.image.grid, max_components=settings.clean_components)
     train = {**settings.recon.get("train", {}), "seed": args.seed}
     config = with_scene_reference(ReconConfig.model_validate({**settings.recon, "train": train}), scene, settings)
-    reference = (None if config.calibration.reference is None
-                 else scene_reference(scene, config.calibration, acquisition))
-    problem = Problem(data.measurements, data.image.grid, clean=clean, image=data.image,
-                      known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
+    problem, reference = calibrated_problem(data, config, clean)
     with tempfile.TemporaryDirectory() as folder:
         trainer = Trainer(problem, config, folder)
         fit = trainer.fit()
@@ -85,9 +82,9 @@ def main() -> None:
     true_gamma = class_reflectivities(tuple(truth), frequency_hz).numpy()
     exact = object_gains(scene, data.measurements, settings)[0] * peak
     readouts = {"network": object_gains(scene, data.measurements, settings,
-                                        sdf=primitive_surface(network, []))[0] * peak * true_gamma,
+                                        sdf=network_with_primitives(network, []))[0] * peak * true_gamma,
                 "primitives": object_gains(scene, data.measurements, settings,
-                                           sdf=primitive_surface(network, primitives))[0] * peak * true_gamma}
+                                           sdf=network_with_primitives(network, primitives))[0] * peak * true_gamma}
     _, rows = _observed_objects(scene, acquisition, 0.002, 40_000, 0)
     objects, right = {}, {"head": 0, "network": 0, "primitives": 0}
     for i, (obj, (_, _, fraction)) in enumerate(zip(scene.objects, rows)):
