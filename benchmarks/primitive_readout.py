@@ -9,8 +9,7 @@ three ways, with the simulator's gain known (the absolute scale a calibration ca
   objects by NNLS (``object_brightness.object_gains``), so that object's |Gamma| reads
   |Gamma_true| a_i x the renderer's peak (1.000 on the exact surfaces: printed);
 - ``primitives``: the same through the primitives that explain their fragments
-  (``[init] primitives``), the network elsewhere (within 3 mm of a primitive its surface is
-  the primitive's).
+  (``[init] primitives``), the network elsewhere (``rfsdf.recon.material_readout.with_primitives``).
 
 The objects are told apart by the true scene (which object's surface a sample is nearest), as
 the demo's per-object rows are; a run without a scene would split by the reconstruction's
@@ -27,7 +26,6 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
-import torch
 from demo_data import calibrated_problem, demo_data
 from object_brightness import object_gains
 from seeds import _materials
@@ -39,21 +37,8 @@ from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.mesh import extract_mesh
 from rfsdf.radar.clean import clean_image
 from rfsdf.recon import ReconConfig, Trainer
+from rfsdf.recon.material_readout import with_primitives
 from rfsdf.recon.render import CoherentRenderer
-
-PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface is the primitive's
-
-
-def network_with_primitives(network_sdf, primitives):
-    """(N, 3) -> (N,) [m]: the primitives' SDF within ``PRIMITIVE_BAND_M`` of them, the network's elsewhere."""
-    def sdf(points: torch.Tensor) -> torch.Tensor:
-        network = network_sdf(points.float()).double()
-        if not primitives:
-            return network
-        nearest = torch.stack([primitive(points.double()) for primitive in primitives]).min(0).values
-        return torch.where(nearest.abs() < PRIMITIVE_BAND_M, nearest, network)
-    return sdf
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
@@ -82,9 +67,9 @@ def main() -> None:
     true_gamma = class_reflectivities(tuple(truth), frequency_hz).numpy()
     exact = object_gains(scene, data.measurements, settings)[0] * peak
     readouts = {"network": object_gains(scene, data.measurements, settings,
-                                        sdf=network_with_primitives(network, []))[0] * peak * true_gamma,
+                                        sdf=with_primitives(network, []))[0] * peak * true_gamma,
                 "primitives": object_gains(scene, data.measurements, settings,
-                                           sdf=network_with_primitives(network, primitives))[0] * peak * true_gamma}
+                                           sdf=with_primitives(network, primitives))[0] * peak * true_gamma}
     _, rows = _observed_objects(scene, acquisition, 0.002, 40_000, 0)
     objects, right = {}, {"head": 0, "network": 0, "primitives": 0}
     for i, (obj, (_, _, fraction)) in enumerate(zip(scene.objects, rows)):

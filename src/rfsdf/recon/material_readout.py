@@ -1,0 +1,117 @@
+"""Each surface's |Gamma| read from the data in closed form, once the geometry is fitted.
+
+The material head learns a class per point by gradient steps from a uniform start, and with a
+known gain it learns the scene's mean level before the objects' differences
+(docs/results/materials.md). What the data hold of a surface's material is its brightness, and
+the renderer is linear in the reflection: so each segment of the surface (an object, a component
+of the reconstruction) is rendered alone with a reflection of 1 at every angle, at the bright
+voxels of every view, and the data's powers there are split over the segments by non-negative
+least squares, |o|^2 ~ sum_i a_i^2 |p_i|^2 (powers add where the segments' phases are unrelated,
+as in the calibration's split, :mod:`~rfsdf.recon.calibration`). a_i, segment i's
+**brightness**, is how much brighter than a perfect reflector the data want it. It is |Gamma_i|
+at normal incidence, the glints' own angle, where the scale is known: by a reference segment of
+known material, |Gamma_i| = |Gamma_ref| a_i / a_ref, or by a known radar gain g (the renderer's
+units to the data's), |Gamma_i| = a_i x the data's peak / g. Without either, only the ratios
+are data.
+
+Assumptions: the surface is right to a fraction of a millimetre over each glint's Fresnel zone
+(a glint's brightness turns with it: the fitted network's ripples move it up to 15 %, a
+primitive of the right shape reads within a few per cent; :func:`with_primitives`), each
+glint is seen near normal incidence (a dielectric's |Gamma| falls off normal, which the unit
+reflection does not model), and the segments' returns add in power, not coherently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy.optimize import nnls
+
+__all__ = ["BRIGHT", "PRIMITIVE_BAND_M", "SurfaceReadout", "read_brightness", "read_surface", "with_primitives"]
+
+BRIGHT = 0.1  # voxels whose observed amplitude (peak 1) reaches this share in some view are compared
+PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface read is the primitive's [m]
+
+
+@dataclass(frozen=True)
+class SurfaceReadout:
+    """Per segment its ``brightness`` a_i (S,) over a unit reflector's, the ``scale`` that makes
+    it |Gamma| at normal incidence (None: only ratios are data) and how many ``voxels`` were
+    compared."""
+
+    brightness: np.ndarray
+    scale: float | None
+    voxels: int
+
+    @property
+    def reflectivity(self) -> np.ndarray | None:
+        """(S,) |Gamma_i| at normal incidence, or None without a scale."""
+        return None if self.scale is None else self.brightness * self.scale
+
+
+class _Unit:
+    """A field that reflects 1 at every angle on the surface candidates ``mask`` (Q,) selects and
+    0 elsewhere: what the renderer needs of a field whose f it holds fixed."""
+
+    material_head = None
+
+    def __init__(self, mask: torch.Tensor):
+        self.mask = mask
+
+    def reflectivity(self, anchors: torch.Tensor) -> torch.Tensor:
+        return self.mask
+
+
+@torch.no_grad()
+def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float | None = None,
+                    reference: tuple[int, float] | None = None, chunk: int = 1 << 14) -> SurfaceReadout:
+    """The module docstring's split on ``renderer`` (a CoherentRenderer refreshed on the surface
+    to read): ``segments`` (Q,) int64, each surface candidate's segment in [0, count) (-1: none),
+    scaled by a ``reference`` (segment, its |Gamma| at normal incidence) or, without one, a known
+    ``gain``. A segment no bright voxel sees reads 0."""
+    index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
+    views = torch.arange(renderer.num_views, device=renderer.device)
+    segments = segments.to(renderer.device)
+    design = []
+    for i in range(count):
+        unit = _Unit((segments == i).to(torch.float32))
+        image = torch.cat([renderer(unit, views, part, geometry=False) for part in index.split(chunk)], dim=1)
+        design.append(image.abs().flatten().double().cpu() ** 2)
+    observed = renderer.observed[:, index].abs().flatten().double().cpu() ** 2
+    powers, _ = nnls(torch.stack(design, 1).numpy(), observed.numpy())
+    brightness = np.sqrt(powers)
+    scale = None
+    if reference is not None:
+        segment, reflectivity = reference
+        scale = reflectivity / brightness[segment] if brightness[segment] > 0 else None
+    elif gain is not None:
+        scale = renderer.observed_peak / gain
+    return SurfaceReadout(brightness, scale, len(index))
+
+
+def read_surface(renderer, sdf, segment_of, count: int, *, gain: float | None = None,
+                 reference: tuple[int, float] | None = None, seed: int = 0) -> SurfaceReadout:
+    """:func:`read_brightness` of the surface ``sdf`` ((N, 3) -> (N,) [m]): ``renderer`` refreshed on
+    it (its samples drawn with ``seed``), each candidate's segment ``segment_of`` its anchors (Q, 3)
+    float64 [m] -> (Q,) int64."""
+    grid = renderer.grid
+    with torch.no_grad():
+        values = torch.cat([sdf(chunk.double()).float() for chunk in grid.points().split(1 << 16)])
+    renderer.refresh(sdf, values, torch.Generator().manual_seed(seed))
+    segments = segment_of(renderer.candidates.anchors.double().cpu())
+    return read_brightness(renderer, segments, count, gain=gain, reference=reference)
+
+
+def with_primitives(sdf, primitives):
+    """(N, 3) -> (N,) [m]: the ``primitives``' SDF (their union) within ``PRIMITIVE_BAND_M`` of them,
+    ``sdf``'s (float32 points) elsewhere: the fitted surface with the shapes the primitives fitted
+    to their range peaks where they stand, before the network's ripples."""
+    def surface(points: torch.Tensor) -> torch.Tensor:
+        network = sdf(points.float()).to(points.dtype)
+        if not primitives:
+            return network
+        nearest = torch.stack([primitive(points.double()) for primitive in primitives]).min(0).values.to(points.dtype)
+        return torch.where(nearest.abs() < PRIMITIVE_BAND_M, nearest, network)
+    return surface
