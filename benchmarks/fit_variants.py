@@ -83,8 +83,10 @@ def _closed_form(trainer: Trainer, scene, reference, materials: dict) -> dict:
     result = {}
     for name, primitives in (("network", []), ("primitives", explaining)):
         read = read_surface(trainer.renderer, with_primitives(network, primitives), owner, len(names), **scale)
-        objects = {obj: {"reflectivity": float(value),
-                         "predicted": str(reflectivity_class(float(value), classes, frequency_hz))}
+        # NaN: no surface of the object renders where the data are bright; 0: the data want none of it
+        objects = {obj: {"reflectivity": None if np.isnan(value) else 0.0, "predicted": None} if not value > 0 else
+                   {"reflectivity": float(value), "predicted": str(reflectivity_class(float(value), classes,
+                                                                                      frequency_hz))}
                    for obj, value in zip(names, read.reflectivity)}
         right = sum(row["observed_fraction"] >= MIN_OBSERVED_FRACTION and not row["reference"]
                     and objects[obj]["predicted"] == row["true"] for obj, row in materials.items())

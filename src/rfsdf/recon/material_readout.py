@@ -37,9 +37,9 @@ PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface re
 
 @dataclass(frozen=True)
 class SurfaceReadout:
-    """Per segment its ``brightness`` a_i (S,) over a unit reflector's, the ``scale`` that makes
-    it |Gamma| at normal incidence (None: only ratios are data) and how many ``voxels`` were
-    compared."""
+    """Per segment its ``brightness`` a_i (S,) over a unit reflector's (NaN: the segment renders
+    nothing where the data are bright), the ``scale`` that makes it |Gamma| at normal incidence
+    (None: only ratios are data) and how many ``voxels`` were compared."""
 
     brightness: np.ndarray
     scale: float | None
@@ -70,7 +70,8 @@ def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float
     """The module docstring's split on ``renderer`` (a CoherentRenderer refreshed on the surface
     to read): ``segments`` (Q,) int64, each surface candidate's segment in [0, count) (-1: none),
     scaled by a ``reference`` (segment, its |Gamma| at normal incidence) or, without one, a known
-    ``gain``. A segment no bright voxel sees reads 0."""
+    ``gain``. A segment that renders nothing at the bright voxels (no surface there, or none lit)
+    reads NaN: the data say nothing of it."""
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
     segments = segments.to(renderer.device)
@@ -80,12 +81,13 @@ def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float
         image = torch.cat([renderer(unit, views, part, geometry=False) for part in index.split(chunk)], dim=1)
         design.append(image.abs().flatten().double().cpu() ** 2)
     observed = renderer.observed[:, index].abs().flatten().double().cpu() ** 2
-    powers, _ = nnls(torch.stack(design, 1).numpy(), observed.numpy())
-    brightness = np.sqrt(powers)
+    design = torch.stack(design, 1).numpy()
+    powers, _ = nnls(design, observed.numpy())
+    brightness = np.where(design.any(0), np.sqrt(powers), np.nan)
     scale = None
     if reference is not None:
         segment, reflectivity = reference
-        scale = reflectivity / brightness[segment] if brightness[segment] > 0 else None
+        scale = reflectivity / brightness[segment] if brightness[segment] > 0 else None  # NaN > 0 is False
     elif gain is not None:
         scale = renderer.observed_peak / gain
     return SurfaceReadout(brightness, scale, len(index))
