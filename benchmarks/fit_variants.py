@@ -35,10 +35,10 @@ from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.device import resolve_device
 from rfsdf.jsonio import to_json
 from rfsdf.material_estimates import MIN_OBSERVED_FRACTION
+from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
-from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import ReconConfig, Trainer
