@@ -78,16 +78,19 @@ def _closed_form(trainer: Trainer, scene, reference, materials: dict) -> dict:
     def owner(anchors: torch.Tensor) -> torch.Tensor:
         return torch.stack([obj.sdf(anchors).abs() for obj in scene.objects]).argmin(0)
 
+    def reading(value: float) -> dict:
+        """NaN (no surface of the object renders where the data are bright) and 0 (the data want
+        none of it) name no class."""
+        if not value > 0:
+            return {"reflectivity": None if np.isnan(value) else 0.0, "predicted": None}
+        return {"reflectivity": value, "predicted": str(reflectivity_class(value, classes, frequency_hz))}
+
     network = trainer.field.eval().sdf
     explaining = [fit.primitive for fit in trainer.primitive_fits or [] if fit.explains]
     result = {}
     for name, primitives in (("network", []), ("primitives", explaining)):
         read = read_surface(trainer.renderer, with_primitives(network, primitives), owner, len(names), **scale)
-        # NaN: no surface of the object renders where the data are bright; 0: the data want none of it
-        objects = {obj: {"reflectivity": None if np.isnan(value) else 0.0, "predicted": None} if not value > 0 else
-                   {"reflectivity": float(value), "predicted": str(reflectivity_class(float(value), classes,
-                                                                                      frequency_hz))}
-                   for obj, value in zip(names, read.reflectivity)}
+        objects = {obj: reading(float(value)) for obj, value in zip(names, read.reflectivity)}
         right = sum(row["observed_fraction"] >= MIN_OBSERVED_FRACTION and not row["reference"]
                     and objects[obj]["predicted"] == row["true"] for obj, row in materials.items())
         result[name] = {"right": int(right), "objects": objects}

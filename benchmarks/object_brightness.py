@@ -21,18 +21,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from scipy.optimize import nnls
 
 from rfsdf.demo import DemoSettings
 from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.radar import load_radar, simulate
 from rfsdf.recon import CoherentRenderer
+from rfsdf.recon.calibration import BRIGHT, split_powers
 from rfsdf.recon.primitive import PrimitiveField
 from rfsdf.scene import load_scene
 from rfsdf.scene_model import SceneModel
 
-BRIGHT = 0.1  # voxels whose observed amplitude reaches this share of the peak in some view
 
 
 def object_gains(scene, data, settings: DemoSettings, sdf=None, sample_seed: int | None = None
@@ -62,9 +61,7 @@ def object_gains(scene, data, settings: DemoSettings, sdf=None, sample_seed: int
                               for chunk in index.split(1 << 14)], dim=1)
 
     parts = [image((owner == i).float()) for i in range(len(scene.objects))]
-    design = torch.stack([part.abs().flatten() ** 2 for part in parts], 1).double().numpy()
-    powers, _ = nnls(design, (renderer.observed[:, index].abs().flatten() ** 2).double().numpy())
-    return np.sqrt(powers), len(index)
+    return split_powers(parts, renderer.observed[:, index].abs()), len(index)
 
 
 def main() -> None:

@@ -28,9 +28,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
 import torch
 
-__all__ = ["Reference", "Calibration", "AGREEMENT", "CALIBRATION_NAME", "check_reference"]
+__all__ = ["Reference", "Calibration", "AGREEMENT", "BRIGHT", "CALIBRATION_NAME", "check_reference", "split_powers"]
 
 CALIBRATION_NAME = "calibration.json"  # a run folder's Calibration.as_dict(), when a reference calibrated it
 # the reference agrees when the data want between 1/AGREEMENT and AGREEMENT x its |Gamma|: a
@@ -39,7 +40,7 @@ CALIBRATION_NAME = "calibration.json"  # a run folder's Calibration.as_dict(), w
 # plasterboard and concrete (5.9, 4.0 and 2.6 times brighter at normal incidence), hardly from
 # glass (2.3)
 AGREEMENT = 2.0
-_BRIGHT = 0.1  # voxels whose observed amplitude (peak 1, brightest view) reaches this share are compared
+BRIGHT = 0.1  # voxels whose observed amplitude (peak 1, brightest view) reaches this share are compared
 
 
 @dataclass(frozen=True)
@@ -104,17 +105,17 @@ class Calibration:
         return {"reference": self.reference, "gain": self.gain, "ratio": self.ratio, "warning": self.warning()}
 
 
-def _split_gains(reference: torch.Tensor, rest: torch.Tensor, observed: torch.Tensor) -> tuple[float, float]:
-    """(a, b) >= 0 with a^2 |r|^2 + b^2 |s|^2 closest to o^2 in least squares, for complex
-    images r, s and observed amplitudes o (all the same shape): powers add where the two
-    parts' phases are unrelated, which is what a fitted geometry's errors leave of them
-    (fitting |a r + b s| to o instead trusts the parts' interference, and on two balls
-    1.3 range resolutions apart it explained the data by one ball alone)."""
+def split_powers(parts: list[torch.Tensor], observed: torch.Tensor) -> np.ndarray:
+    """(len(parts),) a_i >= 0 with sum_i a_i^2 |p_i|^2 closest to o^2 in least squares, for complex
+    images p_i and observed amplitudes o (all the same shape): powers add where the parts' phases
+    are unrelated, which is what a fitted geometry's errors leave of them (fitting |sum_i a_i p_i|
+    to o instead trusts the parts' interference, and on two balls 1.3 range resolutions apart it
+    explained the data by one ball alone)."""
     from scipy.optimize import nnls
 
-    design = torch.stack([reference.abs().flatten() ** 2, rest.abs().flatten() ** 2], dim=1)
+    design = torch.stack([part.abs().flatten() ** 2 for part in parts], dim=1)
     powers, _ = nnls(design.double().cpu().numpy(), (observed.flatten() ** 2).double().cpu().numpy())
-    return float(powers[0]) ** 0.5, float(powers[1]) ** 0.5
+    return np.sqrt(powers)
 
 
 @torch.no_grad()
@@ -126,7 +127,7 @@ def check_reference(trainer, reference: Reference) -> Calibration:
     renderer, field = trainer.renderer, trainer.field
     trainer.refresh_surface()
     observed = trainer.observed  # (V, N), peak 1
-    index = (observed.max(0).values >= _BRIGHT).nonzero().squeeze(1)
+    index = (observed.max(0).values >= BRIGHT).nonzero().squeeze(1)
     probabilities = trainer.surface_materials(geometry=False)
     mine = reference.mask(renderer.candidates.anchors).to(probabilities.device)[:, None]
     all_views = torch.arange(renderer.num_views, device=renderer.device)
@@ -140,6 +141,6 @@ def check_reference(trainer, reference: Reference) -> Calibration:
     gain = float((total * measured).sum() / (total * total).sum().clamp(min=1e-30))
     ratio = None
     if float(own.abs().max()) > 0 and float(rest.abs().max()) > 0:
-        a, b = _split_gains(own, rest, measured)
+        a, b = (float(x) for x in split_powers([own, rest], measured))
         ratio = a / b if b > 0 else float("inf")
     return Calibration(f"{reference.name}={reference.material}", gain * renderer.observed_peak, ratio)

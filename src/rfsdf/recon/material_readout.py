@@ -27,11 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy.optimize import nnls
 
-__all__ = ["BRIGHT", "PRIMITIVE_BAND_M", "SurfaceReadout", "read_brightness", "read_surface", "with_primitives"]
+from .calibration import BRIGHT, split_powers
 
-BRIGHT = 0.1  # voxels whose observed amplitude (peak 1) reaches this share in some view are compared
+__all__ = ["PRIMITIVE_BAND_M", "SurfaceReadout", "read_brightness", "read_surface", "with_primitives"]
+
 PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface read is the primitive's [m]
 
 
@@ -75,15 +75,10 @@ def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
     segments = segments.to(renderer.device)
-    design = []
-    for i in range(count):
-        unit = _Unit((segments == i).to(torch.float32))
-        image = torch.cat([renderer(unit, views, part, geometry=False) for part in index.split(chunk)], dim=1)
-        design.append(image.abs().flatten().double().cpu() ** 2)
-    observed = renderer.observed[:, index].abs().flatten().double().cpu() ** 2
-    design = torch.stack(design, 1).numpy()
-    powers, _ = nnls(design, observed.numpy())
-    brightness = np.where(design.any(0), np.sqrt(powers), np.nan)
+    images = [torch.cat([renderer(_Unit((segments == i).to(torch.float32)), views, part, geometry=False)
+                         for part in index.split(chunk)], dim=1) for i in range(count)]
+    rendered = np.array([bool(image.abs().max() > 0) if image.numel() else False for image in images])
+    brightness = np.where(rendered, split_powers(images, renderer.observed[:, index].abs()), np.nan)
     scale = None
     if reference is not None:
         segment, reflectivity = reference
