@@ -6,9 +6,7 @@ how far they lie from the true surface (beyond 2 mm, within 1 mm, amplitude-weig
 fragment's primitive where they are fitted, the warm start's and the fit's observed-surface and
 whole-surface Chamfer-L1 with each object's (and its part of the observed one), the share of the
 warm start's observed error the fit removes, and with a material head the demo's material readout
-and each object's |Gamma| read in closed form (``rfsdf.recon.material_readout``) through the fitted
-network and through it with the primitives that replaced their fragments, the objects told apart by
-the true scene, scaled by the scene's reference where it names one, else the simulator's gain.
+(the head's and the closed-form readout's, ``rfsdf.material_estimates.read_materials``).
 A variant's ``"gain"`` (beside its ReconConfig tables) holds that radar gain in the fit, as a
 calibration capture gives it (1.0 for simulated data), instead of fitting one at each step.
 
@@ -34,15 +32,11 @@ from seeds import _materials
 from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.device import resolve_device
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import MIN_OBSERVED_FRACTION
-from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
-from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import ReconConfig, Trainer
-from rfsdf.recon.material_readout import read_surface, with_primitives
 
 
 def _peak_distances(trainer: Trainer, scene) -> dict[str, float]:
@@ -63,38 +57,6 @@ def _primitives(trainer: Trainer) -> list[dict]:
              "median_mm": fit.peaks_median_m * 1e3, "warm_median_mm": fit.fragment.warm_median_m * 1e3,
              "replaces": fit.explains}
             for fit in trainer.primitive_fits or []]
-
-
-def _closed_form(trainer: Trainer, scene, reference, materials: dict) -> dict:
-    """Each object's |Gamma| and class read in closed form through the fitted ``network`` and
-    through it with the ``primitives`` that replaced their fragments (the module docstring), and how
-    many of the objects the demo's readout (``materials``) counts each reads right."""
-    frequency_hz = trainer.problem.measurements.acquisition.center_frequency_hz
-    classes, names = tuple(trainer.config.field.materials), [obj.name for obj in scene.objects]
-    scale = ({"gain": SIMULATED_GAIN} if reference is None else
-             {"reference": (names.index(reference.name),
-                            float(class_reflectivities((reference.material,), frequency_hz)[0]))})
-
-    def owner(anchors: torch.Tensor) -> torch.Tensor:
-        return torch.stack([obj.sdf(anchors).abs() for obj in scene.objects]).argmin(0)
-
-    def reading(value: float) -> dict:
-        """NaN (no surface of the object renders where the data are bright) and 0 (the data want
-        none of it) name no class."""
-        if not value > 0:
-            return {"reflectivity": None if np.isnan(value) else 0.0, "predicted": None}
-        return {"reflectivity": value, "predicted": str(reflectivity_class(value, classes, frequency_hz))}
-
-    network = trainer.field.eval().sdf
-    explaining = [fit.primitive for fit in trainer.primitive_fits or [] if fit.explains]
-    result = {}
-    for name, primitives in (("network", []), ("primitives", explaining)):
-        read = read_surface(trainer.renderer, with_primitives(network, primitives), owner, len(names), **scale)
-        objects = {obj: reading(float(value)) for obj, value in zip(names, read.reflectivity)}
-        right = sum(row["observed_fraction"] >= MIN_OBSERVED_FRACTION and not row["reference"]
-                    and objects[obj]["predicted"] == row["true"] for obj, row in materials.items())
-        result[name] = {"right": int(right), "objects": objects}
-    return result
 
 
 def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int], device: str, out: Path) -> list[dict]:
@@ -142,7 +104,6 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
                        "removed": 1 - fitted["observed_mm"] / warm["observed_mm"]}
                 if fit.field.material_head is not None:
                     row["materials"] = _materials(trainer, fit, mesh, reference, scene, settings.seed)
-                    row["closed_form"] = _closed_form(trainer, scene, reference, row["materials"]["objects"])
             rows.append(row)
             print(to_json(row, indent=None), flush=True)
             out.write_text(to_json({"scene": settings.scene, "radar": settings.radar, "device": str(device),

@@ -60,7 +60,7 @@ def main() -> None:
         mesh = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution)
         head = _materials(trainer, fit, mesh, reference, scene, settings.seed)["objects"]
     network = fit.field.eval().sdf
-    primitives = [f.primitive for f in trainer.primitive_fits or [] if f.explains]
+    primitives = trainer.primitives
     peak = CoherentRenderer(data.measurements, data.image.grid).observed_peak
     frequency_hz = acquisition.center_frequency_hz
     truth = [obj.material.name for obj in scene.objects]

@@ -27,7 +27,7 @@ from demo_data import demo_data
 
 from rfsdf.demo import DemoSettings, with_scene_reference
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import calibration_text, estimate_materials, scene_reference
+from rfsdf.material_estimates import calibration_text, estimate_materials, read_materials, scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
@@ -47,13 +47,18 @@ def _scores(metrics) -> dict[str, float]:
 
 def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict:
     """The fit's material readout as the demo reports it: per object its true and predicted
-    class, reflectivity and observed share, and the class accuracy over the objects counted."""
+    class, what predicted it (the data's closed-form readout or the head), the head's
+    reflectivity and the readout, the observed share, and the class accuracy over the objects
+    counted."""
     calibration = None if reference is None else check_reference(trainer, reference)
+    readout = read_materials(trainer, mesh, scene=scene,
+                             reference=None if reference is None else (reference.name, reference.material))
     report = estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
                                 calibration=calibration_text(trainer.problem.gain, calibration),
-                                reference=None if reference is None else reference.name)
+                                reference=None if reference is None else reference.name, readout=readout)
     return {"accuracy": report.accuracy, "calibration": report.calibration,
-            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "reflectivity": o.reflectivity,
+            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "source": o.source,
+                                 "reflectivity": o.reflectivity, "readout": o.readout,
                                  "observed_fraction": o.observed_fraction, "reference": o.reference}
                         for o in report.objects}}
 

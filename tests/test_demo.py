@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from matplotlib.image import imread
 
 from rfsdf.cli import main
+from rfsdf.material_estimates import READOUT_CEILING
 
 METHODS = ("neural", "neural_warm_start", "mf_threshold", "clean_threshold", "clean_detection")
 
@@ -48,6 +49,9 @@ def test_quick_demo_runs_end_to_end_and_resumes(quick_demo):
     for estimate in materials["objects"]:
         assert sum(estimate["probabilities"].values()) == pytest.approx(1.0, abs=1e-6)
         assert estimate["predicted"] in estimate["probabilities"] and 0 <= estimate["observed_fraction"] <= 1
+        # the class is the closed-form readout's where it reads a passive surface, else the head's
+        assert (estimate["source"] == "data") is (estimate["readout"] is not None
+                                                  and 0 < estimate["readout"] <= READOUT_CEILING), estimate
     assert {o["true"] for o in materials["objects"]} == {"metal", "wood", "glass", "concrete", "plasterboard"}
     # the default scene names its metal ball as the calibration reference
     assert len(materials["components"]) >= 1 and materials["calibration"].startswith("reference metal_ball=metal")

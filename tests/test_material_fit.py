@@ -10,8 +10,8 @@ import trimesh
 
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
-    MIN_OBSERVED_FRACTION, class_accuracy, component_materials, eps_of_reflectivity, object_materials,
-    scene_reference,
+    MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, class_accuracy, component_materials,
+    eps_of_reflectivity, object_materials, read_materials, scene_reference, with_readout,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
@@ -150,25 +150,71 @@ def _calibrated_two_balls(two_balls_start, tmp_path, reference: str, *, scale: f
     trainer.field.load_state_dict(start)
     fit = trainer.fit()
     estimates = {e.name: e for e in object_materials(fit.field, scene, data.acquisition)}
-    return check_reference(trainer, reference), estimates["wood_ball"]
+    return check_reference(trainer, reference), estimates["wood_ball"], trainer
 
 
-def test_a_metal_reference_calibrates_the_gain_and_a_wrong_one_is_flagged(two_balls_start, tmp_path):
+@pytest.fixture(scope="module")
+def metal_referenced(two_balls_start, tmp_path_factory):
+    """:func:`_calibrated_two_balls` with the metal ball the reference, as it is."""
+    return _calibrated_two_balls(two_balls_start, tmp_path_factory.mktemp("metal"), "metal_ball=metal")
+
+
+def test_a_metal_reference_calibrates_the_gain_and_a_wrong_one_is_flagged(two_balls_start, metal_referenced,
+                                                                           tmp_path):
     """The metal ball named as the reference: the gain fitted to the data follows the radar's
     (data 3 x brighter: 3 x the gain, to 1 %), is the simulator's within 30 % (measured 1.28:
     the regressed glints are dimmer), and the wooden ball reads wood; the data want 0.89 x
     the reference's |Gamma|. The wooden ball called metal, or the metal one wood, disagree
     with the rest of the scene by more than AGREEMENT (measured 0.23 and 3.8)."""
-    right, wood = _calibrated_two_balls(two_balls_start, tmp_path, "metal_ball=metal")
-    brighter, _ = _calibrated_two_balls(two_balls_start, tmp_path, "metal_ball=metal", scale=3.0)
+    right, wood, _ = metal_referenced
+    brighter, _, _ = _calibrated_two_balls(two_balls_start, tmp_path, "metal_ball=metal", scale=3.0)
     assert brighter.gain / right.gain == pytest.approx(3.0, rel=0.01)
     assert right.gain == pytest.approx(SIMULATED_GAIN, rel=0.3)
     assert right.warning() is None, right
     assert wood.predicted == "wood", wood
     for wrong in ("wood_ball=metal", "metal_ball=wood"):
-        calibration, _ = _calibrated_two_balls(two_balls_start, tmp_path, wrong)
+        calibration, _, _ = _calibrated_two_balls(two_balls_start, tmp_path, wrong)
         assert calibration.warning() is not None and wrong in calibration.warning(), calibration
 
+
+
+def test_the_report_reads_each_ball_in_closed_form_by_object_and_by_component(two_balls_start, metal_referenced):
+    """``read_materials`` on the metal-referenced fit: the reference reads its stated |Gamma| (1)
+    and the wooden ball wood's 0.171 within a factor 1.5 (measured 0.190); a mesh of the two balls
+    (the true surfaces as two components) reads the same per component as per object within 2 %
+    (in either order: their areas are equal). Relative (no reference, no known gain), scaled by
+    the gain the finished fit wants: the metal ball within 10 % of 1 (measured 0.966), the ratio
+    of the two as with the reference."""
+    scene, data, _, _ = two_balls_start
+    *_, trainer = metal_referenced
+    mesh = trimesh.util.concatenate([trimesh.creation.icosphere(subdivisions=3, radius=0.015)
+                                     .apply_translation([x, 0.0, 0.0]) for x in (-0.025, 0.025)])
+    objects, components = read_materials(trainer, mesh, scene=scene, reference=("metal_ball", "metal"))
+    wood = float(class_reflectivities(("wood",), data.acquisition.center_frequency_hz)[0])
+    assert objects[0] == pytest.approx(1.0) and wood / 1.5 < objects[1] < wood * 1.5, objects
+    np.testing.assert_allclose(np.sort(components), np.sort(objects), rtol=0.02)
+    relative, _ = read_materials(trainer, mesh, scene=scene)
+    assert relative[0] == pytest.approx(1.0, rel=0.1), relative
+    assert relative[1] / relative[0] == pytest.approx(objects[1], rel=0.02)
+
+
+def test_a_readout_of_a_passive_surface_names_the_class_and_any_other_leaves_the_head_s():
+    """``with_readout``: 0.45 reads glass (eps' from it, no interval), 0.98 metal (no eps'); above
+    READOUT_CEILING (the surface is wrong), at 0 or NaN (the data show nothing) the head's class
+    stands, the readout kept beside it where there is one."""
+    head = MaterialEstimate("ball", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19))
+    classes = ("metal", "glass", "wood")
+
+    def read(value):
+        return with_readout(head, value, classes, 79e9)
+
+    glass = read(0.45)
+    assert (glass.predicted, glass.source, glass.readout, glass.eps_real_interval) == ("glass", "data", 0.45, None)
+    assert glass.eps_real == pytest.approx(float(eps_of_reflectivity(0.45)))
+    assert (read(0.98).predicted, read(0.98).eps_real) == ("metal", None)
+    for value in (READOUT_CEILING + 0.05, 0.0):
+        assert read(value) == dataclasses.replace(head, readout=value)
+    assert read(float("nan")) == head
 
 
 def test_a_mesh_component_without_area_is_not_read(tiny_radar):

@@ -33,10 +33,15 @@ def _turned(shape: geo.SDF) -> geo.SDF:
     ("capsule", [0.012, 0.02], geo.Capsule([0, 0, -0.02], [0, 0, 0.02], 0.012)),
     ("torus", [0.03, 0.01], geo.Torus(0.03, 0.01)),
 ])
-def test_a_framed_primitive_is_the_library_shape_turned_and_moved(kind, sizes, reference):
+def test_a_framed_primitive_is_the_library_shape_turned_and_moved(kind, sizes, reference, tmp_path):
+    """... and its ``state`` through a ``weights_only`` file (a checkpoint) is the same shape."""
     points = torch.randn(200, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0)) * 0.03
     framed = FramedPrimitive(kind, CENTRE, TURN, sizes)
     torch.testing.assert_close(framed(points).detach(), _turned(reference)(points))
+    torch.save(framed.state(), tmp_path / "primitive.pt")
+    held = FramedPrimitive.from_state(torch.load(tmp_path / "primitive.pt", weights_only=True))
+    assert held.kind == kind
+    torch.testing.assert_close(held(points).detach(), _turned(reference)(points))
 
 
 def _on(sdf, count: int, seed: int) -> torch.Tensor:

@@ -5,6 +5,7 @@ import dataclasses
 import math
 import tempfile
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -620,15 +621,17 @@ def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(s
 
     _, data = sphere_data
     seen = {}
+    fits = [SimpleNamespace(explains=True, primitive="kept"), SimpleNamespace(explains=False, primitive="left")]
     monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: None)
     monkeypatch.setattr(trainer_module, "primitive_start", lambda field, points, towards, *a, caps=None, **kw:
-                        seen.update(points=points, towards=towards, caps=caps) or ["fit"])
+                        seen.update(points=points, towards=towards, caps=caps) or fits)
     for on, cone in ((False, 0.0), (True, 0.0), (True, 0.5)):
         settings = _config(steps=2).model_dump()
         settings["init"].update(method="mf", threshold=0.05, primitives=on, peak_cone_deg=cone)
         trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{on}{cone}")
         trainer.warm_start()
-        assert (trainer.primitive_fits == ["fit"]) is on and (seen != {}) is on
+        assert (trainer.primitive_fits == fits) is on and (seen != {}) is on
+        assert trainer.primitives == (["kept"] if on else [])  # those that replaced their fragments
         assert (seen.get("caps") is not None) is (cone > 0)
     torch.testing.assert_close(seen["points"], trainer.peaks[0])
     torch.testing.assert_close(seen["towards"], trainer.peaks[3])
@@ -900,6 +903,22 @@ def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_p
     other = Problem(dataclasses.replace(data, data=data.data * 1.5), _grid(10), "other.h5")
     with pytest.raises(RfsdfError, match="fitted on data.h5 .* not on other.h5"):
         Trainer(other, _config(), tmp_path / "b").fit(resume=True)
+
+
+def test_the_primitives_that_replaced_their_fragments_resume_with_the_run(sphere_data, tmp_path):
+    """The checkpoint holds them (the material readout reads through them after a resume)."""
+    from rfsdf.recon.object_primitives import FramedPrimitive
+
+    _, data = sphere_data
+    problem = Problem(data, _grid(10), "data.h5")
+    trainer = Trainer(problem, _config(), tmp_path)
+    trainer.primitives = [FramedPrimitive("capsule", [0.01, 0.0, 0.0], [0.0, 0.3, 0.0], [0.01, 0.02])]
+    trainer.save()
+    resumed = Trainer(problem, _config(), tmp_path)
+    resumed.load()
+    points = torch.rand(50, 3, dtype=torch.float64) * 0.04
+    assert [p.kind for p in resumed.primitives] == ["capsule"]
+    torch.testing.assert_close(resumed.primitives[0](points), trainer.primitives[0](points))
 
 
 def test_a_run_resumes_on_another_device_but_not_with_other_settings(sphere_data, tmp_path):

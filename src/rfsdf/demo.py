@@ -43,7 +43,7 @@ from .errors import RfsdfError
 from .geometry import Grid
 from .jsonio import to_json, write_json
 from .material_estimates import (
-    MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, scene_reference,
+    MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, read_materials, scene_reference,
 )
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene, once_per_samples
@@ -354,9 +354,12 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
         calibration = None if reference is None else check_reference(trainer, reference)
         if calibration is not None and calibration.warning() is not None:
             log(f"warning: {calibration.warning()}")
+        cc = config.calibration
+        stated = None if reference is None else (cc.reference_object, cc.reference_material)
         materials = estimate_materials(fit.field, neural, measurements.acquisition, scene=scene, seed=settings.seed,
                                        calibration=calibration_text(problem.gain, calibration),
-                                       reference=config.calibration.reference_object)
+                                       reference=cc.reference_object,
+                                       readout=read_materials(trainer, neural, scene=scene, reference=stated))
         lap("materials_s")
 
     reference = scene.ground_truth_mesh()

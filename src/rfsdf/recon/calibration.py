@@ -31,7 +31,8 @@ from typing import Callable
 import numpy as np
 import torch
 
-__all__ = ["Reference", "Calibration", "AGREEMENT", "BRIGHT", "CALIBRATION_NAME", "check_reference", "split_powers"]
+__all__ = ["Reference", "Calibration", "AGREEMENT", "BRIGHT", "CALIBRATION_NAME", "check_reference", "fitted_gain",
+           "split_powers"]
 
 CALIBRATION_NAME = "calibration.json"  # a run folder's Calibration.as_dict(), when a reference calibrated it
 # the reference agrees when the data want between 1/AGREEMENT and AGREEMENT x its |Gamma|: a
@@ -118,6 +119,29 @@ def split_powers(parts: list[torch.Tensor], observed: torch.Tensor) -> np.ndarra
     return np.sqrt(powers)
 
 
+def _bright(trainer) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The bright voxels of the data (N,), every view (V,) and the finished fit's class
+    probabilities on new surface samples: what the checks below render."""
+    trainer.refresh_surface()
+    index = (trainer.observed.max(0).values >= BRIGHT).nonzero().squeeze(1)
+    views = torch.arange(trainer.renderer.num_views, device=trainer.renderer.device)
+    return index, views, trainer.surface_materials(geometry=False)
+
+
+def _least_squares_gain(predicted: torch.Tensor, observed: torch.Tensor) -> float:
+    return float((predicted * observed).sum() / (predicted * predicted).sum().clamp(min=1e-30))
+
+
+@torch.no_grad()
+def fitted_gain(trainer) -> float:
+    """The gain [data units per renderer unit] that fits a finished fit's own prediction (its
+    head's reflection) to the data's amplitudes at their bright voxels: the scale its head's
+    classes are read in when neither a reference nor a known gain set one."""
+    index, views, probabilities = _bright(trainer)
+    predicted = trainer.renderer(trainer.field, views, index, geometry=False, probabilities=probabilities).abs()
+    return _least_squares_gain(predicted, trainer.observed[:, index]) * trainer.renderer.observed_peak
+
+
 @torch.no_grad()
 def check_reference(trainer, reference: Reference) -> Calibration:
     """The gain and the reference's agreement (:class:`Calibration`) of a finished fit:
@@ -125,20 +149,15 @@ def check_reference(trainer, reference: Reference) -> Calibration:
     field (new surface samples) for the reference's surface and the rest's, and the
     observed amplitudes there."""
     renderer, field = trainer.renderer, trainer.field
-    trainer.refresh_surface()
-    observed = trainer.observed  # (V, N), peak 1
-    index = (observed.max(0).values >= BRIGHT).nonzero().squeeze(1)
-    probabilities = trainer.surface_materials(geometry=False)
+    index, all_views, probabilities = _bright(trainer)
     mine = reference.mask(renderer.candidates.anchors).to(probabilities.device)[:, None]
-    all_views = torch.arange(renderer.num_views, device=renderer.device)
 
     def image(p: torch.Tensor) -> torch.Tensor:  # one prediction a view, imaged at every bright voxel
         return renderer(field, all_views, index, geometry=False, probabilities=p)
 
     own, rest = image(probabilities * mine), image(probabilities * ~mine)
-    measured = observed[:, index]
-    total = (own + rest).abs()
-    gain = float((total * measured).sum() / (total * total).sum().clamp(min=1e-30))
+    measured = trainer.observed[:, index]
+    gain = _least_squares_gain((own + rest).abs(), measured)
     ratio = None
     if float(own.abs().max()) > 0 and float(rest.abs().max()) > 0:
         a, b = (float(x) for x in split_powers([own, rest], measured))

@@ -93,9 +93,9 @@ def read_surface(renderer, sdf, segment_of, count: int, *, gain: float | None = 
     """:func:`read_brightness` of the surface ``sdf`` ((N, 3) -> (N,) [m]): ``renderer`` refreshed on
     it (its samples drawn with ``seed``), each candidate's segment ``segment_of`` its anchors (Q, 3)
     float64 [m] -> (Q,) int64."""
-    grid = renderer.grid
     with torch.no_grad():
-        values = torch.cat([sdf(chunk.double()).float() for chunk in grid.points().split(1 << 16)])
+        points = renderer.grid.points(device=renderer.device)
+        values = torch.cat([sdf(chunk.double()).float() for chunk in points.split(1 << 16)])
     renderer.refresh(sdf, values, torch.Generator().manual_seed(seed))
     segments = segment_of(renderer.candidates.anchors.double().cpu())
     return read_brightness(renderer, segments, count, gain=gain, reference=reference)
@@ -109,6 +109,7 @@ def with_primitives(sdf, primitives):
         network = sdf(points.float()).to(points.dtype)
         if not primitives:
             return network
-        nearest = torch.stack([primitive(points.double()) for primitive in primitives]).min(0).values.to(points.dtype)
+        held = points.double().cpu()  # the primitives' parameters live on the CPU
+        nearest = torch.stack([primitive(held) for primitive in primitives]).min(0).values.to(network)
         return torch.where(nearest.abs() < PRIMITIVE_BAND_M, nearest, network)
     return surface

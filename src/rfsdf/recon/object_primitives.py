@@ -187,6 +187,16 @@ class FramedPrimitive(torch.nn.Module):
         local = (points.to(torch.float64) - self.centre) @ geo.rotation_from_vector(self.rotation)
         return self.shape()(local)
 
+    def state(self) -> dict:
+        """The primitive as a checkpoint holds it (a string and tensors: ``weights_only`` loads it)."""
+        return {"kind": self.kind, "centre": self.centre.detach().clone(), "rotation": self.rotation.detach().clone(),
+                "sizes": self.log_sizes.detach().exp()}
+
+    @classmethod
+    def from_state(cls, state: dict) -> FramedPrimitive:
+        """The primitive that :meth:`state` describes."""
+        return cls(state["kind"], state["centre"], state["rotation"], state["sizes"])
+
     def describe(self) -> dict:
         """kind, centre [m], sizes [m] and the frame's axes (rows) in the scene, as plain lists."""
         axes = geo.rotation_from_vector(self.rotation.detach()).T

@@ -41,7 +41,7 @@ from .config import ReconConfig
 from .glints import cap_minimum, glint_caps
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
-from .object_primitives import primitive_start
+from .object_primitives import FramedPrimitive, primitive_start
 from .render import RENDERERS
 from .sampling import bending_pairs, data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
@@ -193,6 +193,7 @@ class Trainer:
         self.peaks: tuple[torch.Tensor, ...] | None = None
         self._peak_lines: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None  # see peak_lines()
         self.primitive_fits: list | None = None  # the fragments' primitives, with init.primitives
+        self.primitives: list[FramedPrimitive] = []  # those that replaced their fragments (checkpointed)
 
     # Checkpoints -------------------------------------------------------------------------
     @property
@@ -206,7 +207,7 @@ class Trainer:
             "generator": self.generator.get_state(), "surface": self.renderer.surface_state(),
             "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
             "data_digest": self.problem.digest(), "data_source": self.problem.source, "gain": self.problem.gain,
-            "peaks": self.peaks,
+            "peaks": self.peaks, "primitives": [primitive.state() for primitive in self.primitives],
         })
         write_log(self.run_dir, [asdict(r) for r in self.log])
 
@@ -229,6 +230,7 @@ class Trainer:
             self.log = [StepRecord(**row) for row in state["log"]]
             self.warm_state = state["warm_field"]
             self.peaks = state["peaks"]
+            self.primitives = [FramedPrimitive.from_state(p) for p in state.get("primitives", [])]  # none before 74
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             if isinstance(exc, RfsdfError):
                 raise
@@ -290,6 +292,7 @@ class Trainer:
                 self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, lr=ic.lr,
                 batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share, generator=self.generator,
                 caps=None if caps is None else caps.cpu(), progress=self.progress)
+            self.primitives = [fit.primitive for fit in self.primitive_fits if fit.explains]
 
     @torch.no_grad()
     def refresh_surface(self) -> None:
