@@ -37,6 +37,7 @@ from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon import ReconConfig, Trainer
+from rfsdf.recon.material_readout import PRIMITIVE_BAND_M
 
 
 def _peak_distances(trainer: Trainer, scene) -> dict[str, float]:
@@ -57,6 +58,21 @@ def _primitives(trainer: Trainer) -> list[dict]:
              "median_mm": fit.peaks_median_m * 1e3, "warm_median_mm": fit.fragment.warm_median_m * 1e3,
              "replaces": fit.explains}
             for fit in trainer.primitive_fits or []]
+
+
+@torch.no_grad()
+def _covered(trainer: Trainer, scene) -> dict[str, float]:
+    """Each object's share of the surface samples the materials' readout rendered last (the
+    objects told apart by the true scene) within ``PRIMITIVE_BAND_M`` of a primitive that replaced
+    its fragment: where the read surface is a primitive's."""
+    anchors = trainer.renderer.candidates.anchors.double().cpu()
+    owner = torch.stack([obj.sdf(anchors).abs() for obj in scene.objects]).argmin(0)
+    near = torch.zeros(len(anchors), dtype=torch.bool)
+    if trainer.primitives:
+        gaps = torch.stack([primitive(anchors) for primitive in trainer.primitives]).abs().min(0).values
+        near = gaps < PRIMITIVE_BAND_M
+    return {obj.name: float(near[owner == i].double().mean()) if bool((owner == i).any()) else 0.0
+            for i, obj in enumerate(scene.objects)}
 
 
 def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int], device: str, out: Path) -> list[dict]:
@@ -104,6 +120,7 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
                        "removed": 1 - fitted["observed_mm"] / warm["observed_mm"]}
                 if fit.field.material_head is not None:
                     row["materials"] = _materials(trainer, fit, mesh, reference, scene, settings.seed)
+                    row["covered"] = _covered(trainer, scene)
             rows.append(row)
             print(to_json(row, indent=None), flush=True)
             out.write_text(to_json({"scene": settings.scene, "radar": settings.radar, "device": str(device),
