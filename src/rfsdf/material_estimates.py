@@ -22,9 +22,10 @@ form** (``readout``, :mod:`rfsdf.recon.material_readout`) on the fitted surface 
 primitives that replaced their fragments, in the same calibration as the head (the reference
 object, the known gain, or else the gain the finished fit wants). Where it reads a passive
 surface's value (0 < |Gamma| <= ``READOUT_CEILING``) the class is the readout's (``source``
-"data"): on six scenes it read every object whose surface lies within 0.5 mm right, where the
-head read 5 of 11 (docs/results/materials.md). A reading above the ceiling says the surface under
-it is wrong, and none says the data show nothing of it: the head's class stands there.
+"data"): with the gain known it read every object of six scenes whose surface lies within 0.5 mm
+right, where the head read 5 of 11 (docs/results/materials.md); a relative fit's gain, which a
+surface the fit lacks biases, biases both alike. A reading above the ceiling says the surface
+under it is wrong, and none says the data show nothing of it: the head's class stands there.
 """
 
 from __future__ import annotations

@@ -230,7 +230,7 @@ class Trainer:
             self.log = [StepRecord(**row) for row in state["log"]]
             self.warm_state = state["warm_field"]
             self.peaks = state["peaks"]
-            self.primitives = [FramedPrimitive.from_state(p) for p in state.get("primitives", [])]  # none before 74
+            self.primitives = [FramedPrimitive.from_state(p) for p in state.get("primitives", [])]  # older runs hold none
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             if isinstance(exc, RfsdfError):
                 raise
