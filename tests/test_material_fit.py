@@ -255,6 +255,11 @@ def test_the_closed_form_readout_reads_each_ball_on_the_true_surface(tiny_radar)
     referenced = read_brightness(renderer, ball(renderer.candidates.anchors.double()), 2, reference=(0, 1.0))
     assert referenced.reflectivity[1] == pytest.approx(glass / metal, rel=0.01)
     assert read_brightness(renderer, ball(renderer.candidates.anchors.double()), 2).reflectivity is None
+    glass_ball = ball(renderer.candidates.anchors.double()) == 1  # its candidates alone, as if the rest reflected 0
+    unit = type("Unit", (), {"material_head": None, "reflectivity": lambda self, anchors: glass_ball.float()})()
+    views, voxels = torch.arange(renderer.num_views), torch.arange(len(renderer.voxels))
+    torch.testing.assert_close(renderer(unit, views, voxels, geometry=False, only=glass_ball),
+                               renderer(unit, views, voxels, geometry=False))
 
 
 def test_the_surface_read_is_the_primitives_near_them_and_the_network_elsewhere():

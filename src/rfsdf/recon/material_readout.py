@@ -75,7 +75,8 @@ def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
     segments = segments.to(renderer.device)
-    images = [torch.cat([renderer(_Unit((segments == i).to(torch.float32)), views, part, geometry=False)
+    images = [torch.cat([renderer(_Unit((segments == i).to(torch.float32)), views, part, geometry=False,
+                                  only=segments == i)  # its candidates alone: one render's cost over all
                          for part in index.split(chunk)], dim=1) for i in range(count)]
     rendered = np.array([bool(image.abs().max() > 0) if image.numel() else False for image in images])
     brightness = np.where(rendered, split_powers(images, renderer.observed[:, index].abs()), np.nan)

@@ -322,14 +322,15 @@ class CoherentRenderer:
 
     def __call__(self, field, views: torch.Tensor, voxel_index: torch.Tensor, *, geometry: bool = True,
                  probabilities: torch.Tensor | None = None, bands: bool = False,
-                 lines: list[torch.Tensor] | None = None):
+                 lines: list[torch.Tensor] | None = None, only: torch.Tensor | None = None):
         """(len(views), X) complex predicted c_hat_v at the voxels ``voxel_index`` (X,);
         ``geometry=False``: f as it was at the last refresh (the caller holds it fixed since),
         differentiable in the reflection only, and f is not evaluated at all. ``probabilities``:
         :meth:`surface_materials`, when the caller has them already. ``bands``: each sub-band's
         image instead, (len(views), B, X), as ``band_observed``. ``lines``: also each view's
         full-band image at points of its own (one (L_v, 3) tensor [m] per view, as
-        :meth:`observed_at`), from the same prediction: then (images, [(L_v,) complex])."""
+        :meth:`observed_at`), from the same prediction: then (images, [(L_v,) complex]).
+        ``only`` (Q,) bool: these candidates alone, as if the others reflected nothing."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
         points, normals, area, corners = self.surface_geometry(field, geometry=geometry)
@@ -355,7 +356,7 @@ class CoherentRenderer:
             norms = self.column_norms_sq[v, voxel_index]
             if extra is not None:
                 norms = torch.cat([norms, self.operators[v].column_norms_sq(extra)])
-            idx = self.lit[v].nonzero().squeeze(1)
+            idx = (self.lit[v] if only is None else self.lit[v] & only).nonzero().squeeze(1)
             if len(idx) == 0:
                 image = torch.zeros((len(self.band_masks), len(targets)) if bands else (len(targets),),
                                     dtype=complex_dtype, device=self.device)
