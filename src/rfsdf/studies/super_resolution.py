@@ -57,7 +57,7 @@ class Settings:
     seed: int = 0
 
 
-QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6, metric_samples=5_000)
+QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6, metric_samples=2_000)
 
 
 @dataclass(frozen=True)
