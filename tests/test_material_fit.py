@@ -242,10 +242,7 @@ def test_the_closed_form_readout_reads_each_ball_on_the_true_surface(tiny_radar)
     scene = _two_balls("glass")
     data = simulate(scene, tiny_radar, seed=0, spacing_m=tiny_radar.acquisition().wavelength_m / 6)
     renderer = CoherentRenderer(data, Grid((-0.06,) * 3, (0.06,) * 3, (16,) * 3))
-
-    def ball(anchors: torch.Tensor) -> torch.Tensor:
-        return torch.stack([obj.sdf(anchors).abs() for obj in scene.objects]).argmin(0)
-
+    ball = scene.object_index
     known = read_surface(renderer, scene.sdf, ball, 3, gain=SIMULATED_GAIN)
     metal, glass, empty = known.reflectivity
     truth = class_reflectivities(("metal", "glass"), data.acquisition.center_frequency_hz)

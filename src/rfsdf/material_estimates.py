@@ -232,13 +232,10 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None,
     def component_of(anchors: torch.Tensor) -> torch.Tensor:  # the component of the nearest mesh vertex
         return labels[vertices.query(anchors.numpy())[1]]
 
-    def object_of(anchors: torch.Tensor) -> torch.Tensor:
-        return torch.stack([obj.sdf(anchors).abs() for obj in objects]).argmin(0)
-
     surface = with_primitives(trainer.field.sdf, trainer.primitives)
     if not objects:
         return np.zeros(0), read_surface(renderer, surface, component_of, len(parts), **scale).reflectivity
-    read = read_surface(renderer, surface, object_of, len(objects), **scale)
+    read = read_surface(renderer, surface, scene.object_index, len(objects), **scale)
     if read.scale is None:  # the reference renders nothing where the data are bright: nothing is absolute
         return np.full(len(objects), np.nan), np.full(len(parts), np.nan)
     components = read_brightness(renderer, component_of(renderer.candidates.anchors.double().cpu()), len(parts))

@@ -52,16 +52,14 @@ class SurfaceReadout:
 
 
 class _Unit:
-    """A field that reflects 1 at every angle on the surface candidates ``mask`` (Q,) selects and
-    0 elsewhere: what the renderer needs of a field whose f it holds fixed."""
+    """A field that reflects 1 at every angle on every surface candidate: what the renderer needs
+    of a field whose f it holds fixed (which candidates render is its ``only`` mask)."""
 
     material_head = None
 
-    def __init__(self, mask: torch.Tensor):
-        self.mask = mask
-
-    def reflectivity(self, anchors: torch.Tensor) -> torch.Tensor:
-        return self.mask
+    @staticmethod
+    def reflectivity(anchors: torch.Tensor) -> torch.Tensor:
+        return torch.ones(len(anchors), device=anchors.device)
 
 
 @torch.no_grad()
@@ -75,9 +73,9 @@ def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
     segments = segments.to(renderer.device)
-    images = [torch.cat([renderer(_Unit((segments == i).to(torch.float32)), views, part, geometry=False,
-                                  only=segments == i)  # its candidates alone: one render's cost over all
-                         for part in index.split(chunk)], dim=1) for i in range(count)]
+    # each segment's candidates alone: one render's cost over all the segments
+    images = [torch.cat([renderer(_Unit, views, part, geometry=False, only=mine) for part in index.split(chunk)], dim=1)
+              for mine in (segments == i for i in range(count))]
     rendered = np.array([bool(image.abs().max() > 0) if image.numel() else False for image in images])
     brightness = np.where(rendered, split_powers(images, renderer.observed[:, index].abs()), np.nan)
     scale = None
