@@ -1,5 +1,7 @@
 """HDF5 round trips, FMCW import, and the one-line errors of radar files."""
 
+import warnings
+
 import h5py
 import numpy as np
 import pytest
@@ -103,6 +105,10 @@ def test_radar_config_checks(tmp_path):
         check_radar_for_scene(few, scene.lower_m, scene.upper_m)
     with pytest.raises(RfsdfError, match=r"radar.toml: waveform: ofdm waveform needs subcarriers"):
         load_radar(_radar_file(tmp_path, **{"subcarriers = 16": ""}))
+    with warnings.catch_warnings():  # no overflow on the way to the error (numpy warned twice)
+        warnings.simplefilter("error")
+        with pytest.raises(RfsdfError, match="radar position and target are not a finite distance apart"):
+            load_radar(_radar_file(tmp_path, **{"distance_m = 0.75": "distance_m = 1e308"}))
 
 
 def test_cli_simulate_rejects_aliasing_radar_in_one_line(tmp_path):

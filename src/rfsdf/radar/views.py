@@ -11,9 +11,13 @@ def look_at(position_m, target_m=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)) -> np.ndar
     """(3, 3) rotation whose columns are the radar's x, y, z (boresight) axes in the scene frame,
     with the boresight pointing from ``position_m`` to ``target_m``."""
     z = np.asarray(target_m, float) - np.asarray(position_m, float)
-    if np.linalg.norm(z) < 1e-12:
+    with np.errstate(over="ignore"):
+        length = np.linalg.norm(z)
+    if not np.isfinite(length):
+        raise ValueError("radar position and target are not a finite distance apart")
+    if length < 1e-12:
         raise ValueError("radar position and target coincide")
-    z /= np.linalg.norm(z)
+    z /= length
     up = np.asarray(up, float)
     if abs(z @ up) > 0.999:  # looking straight up or down: any horizontal x axis will do
         up = np.array([1.0, 0.0, 0.0])
