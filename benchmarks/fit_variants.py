@@ -66,7 +66,7 @@ def _covered(trainer: Trainer, scene) -> dict[str, float]:
     objects told apart by the true scene) within ``PRIMITIVE_BAND_M`` of a primitive that replaced
     its fragment: where the read surface is a primitive's."""
     anchors = trainer.renderer.candidates.anchors.double().cpu()
-    owner = torch.stack([obj.sdf(anchors).abs() for obj in scene.objects]).argmin(0)
+    owner = scene.object_index(anchors)
     near = torch.zeros(len(anchors), dtype=torch.bool)
     if trainer.primitives:
         gaps = torch.stack([primitive(anchors) for primitive in trainer.primitives]).abs().min(0).values
