@@ -243,20 +243,30 @@ def test_the_closed_form_readout_reads_each_ball_on_the_true_surface(tiny_radar)
     data = simulate(scene, tiny_radar, seed=0, spacing_m=tiny_radar.acquisition().wavelength_m / 6)
     renderer = CoherentRenderer(data, Grid((-0.06,) * 3, (0.06,) * 3, (16,) * 3))
     ball = scene.object_index
-    known = read_surface(renderer, scene.sdf, ball, 3, gain=SIMULATED_GAIN)
+    known, whole = read_surface(renderer, scene.sdf, [(ball, 3), (lambda anchors: torch.zeros(len(anchors)), 1)],
+                                gain=SIMULATED_GAIN)
     metal, glass, empty = known.reflectivity
     truth = class_reflectivities(("metal", "glass"), data.acquisition.center_frequency_hz)
     assert metal == pytest.approx(1.0, rel=0.03) and np.isnan(empty)
     assert reflectivity_class(float(glass), ("metal", "glass", "concrete", "wood"), 79e9) == "glass", known
     assert glass == pytest.approx(float(truth[1]), rel=0.15)
-    referenced = read_brightness(renderer, ball(renderer.candidates.anchors.double()), 2, reference=(0, 1.0))
+    assert metal > whole.reflectivity[0] > glass  # the balls together: between the two
+    labels = ball(renderer.candidates.anchors.double())
+    referenced, again = read_brightness(renderer, [(labels, 2), (labels, 3)], reference=(0, 1.0))
     assert referenced.reflectivity[1] == pytest.approx(glass / metal, rel=0.01)
-    assert read_brightness(renderer, ball(renderer.candidates.anchors.double()), 2).reflectivity is None
-    glass_ball = ball(renderer.candidates.anchors.double()) == 1  # its candidates alone, as if the rest reflected 0
+    np.testing.assert_array_equal(again.brightness[:2], referenced.brightness)  # the same segments, the same split
+    assert read_brightness(renderer, [(labels, 2)])[0].reflectivity is None
+    glass_ball = labels == 1  # its candidates alone, as if the rest reflected 0
     unit = type("Unit", (), {"material_head": None, "reflectivity": lambda self, anchors: glass_ball.float()})()
     views, voxels = torch.arange(renderer.num_views), torch.arange(len(renderer.voxels))
-    torch.testing.assert_close(renderer(unit, views, voxels, geometry=False, only=glass_ball),
-                               renderer(unit, views, voxels, geometry=False))
+    alone = renderer(unit, views, voxels, geometry=False, only=glass_ball)
+    torch.testing.assert_close(alone, renderer(unit, views, voxels, geometry=False))
+    ones = type("Ones", (), {"material_head": None, "reflectivity": lambda self, anchors: torch.ones(len(anchors))})()
+    segments = torch.stack([labels == 0, glass_ball, labels == 2])  # the segment images against one render each
+    together = renderer.segment_images(ones, views, voxels, segments)
+    for image, mine in zip(together, segments):
+        torch.testing.assert_close(image, renderer(ones, views, voxels, geometry=False, only=mine))
+    assert together[2].abs().max() == 0 and together[1].abs().max() > 0
 
 
 def test_the_surface_read_is_the_primitives_near_them_and_the_network_elsewhere():

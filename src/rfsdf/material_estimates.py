@@ -211,7 +211,7 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None,
     from scipy.spatial import cKDTree
 
     from .recon.calibration import fitted_gain
-    from .recon.material_readout import read_brightness, read_surface, with_primitives
+    from .recon.material_readout import read_surface, with_primitives
 
     renderer, frequency_hz = trainer.renderer, trainer.problem.measurements.acquisition.center_frequency_hz
     gain = trainer.problem.gain
@@ -233,13 +233,11 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None,
         return labels[vertices.query(anchors.numpy())[1]]
 
     surface = with_primitives(trainer.field.sdf, trainer.primitives)
-    if not objects:
-        return np.zeros(0), read_surface(renderer, surface, component_of, len(parts), **scale).reflectivity
-    read = read_surface(renderer, surface, scene.object_index, len(objects), **scale)
-    if read.scale is None:  # the reference renders nothing where the data are bright: nothing is absolute
+    segmenters = [(scene.object_index, len(objects))] if objects else []
+    read = read_surface(renderer, surface, segmenters + [(component_of, len(parts))], **scale)
+    if read[0].scale is None:  # the reference renders nothing where the data are bright: nothing is absolute
         return np.full(len(objects), np.nan), np.full(len(parts), np.nan)
-    components = read_brightness(renderer, component_of(renderer.candidates.anchors.double().cpu()), len(parts))
-    return read.reflectivity, components.brightness * read.scale
+    return (read[0].reflectivity if objects else np.zeros(0)), read[-1].reflectivity
 
 
 def with_readout(estimate: MaterialEstimate, value: float, classes: tuple[str, ...],

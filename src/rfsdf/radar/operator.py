@@ -177,18 +177,26 @@ class SensingOperator:
                 bands: torch.Tensor | None = None, progress: bool = False) -> torch.Tensor:
         """x = A^H y at ``points`` (Q, 3): (Q,) complex, or (V, Q) with ``per_view``.
 
+        y : (V, T, R, K), or a stack of S data sets (S, V, T, R, K): then (S, Q) or (S, V, Q),
+        the factors formed once for all of them (S adjoints for about one's phasors).
         bands : (B, K) real weights of the frequencies (e.g. masks of sub-bands): the adjoint
         of each weighting of y at once, A^H (y w_b), (B, Q) or (V, B, Q), for the price of one
         (the sum over frequencies is the last one taken). Differentiable in ``y`` (not in the
         points: images are formed on fixed voxels).
         """
         points = as_points(points)
-        if tuple(y.shape) != self.acq.shape:
-            raise ValueError(f"y must have shape (V, T, R, K) = {self.acq.shape}, got {tuple(y.shape)}")
+        stacked = y.dim() == 5
+        if tuple(y.shape[stacked:]) != self.acq.shape:
+            raise ValueError(f"y must have shape (V, T, R, K) = {self.acq.shape} or (S, V, T, R, K), "
+                             f"got {tuple(y.shape)}")
         if bands is not None and (bands.dim() != 2 or bands.shape[1] != self.acq.shape[3]):
             raise ValueError(f"bands must have shape (B, K) with K = {self.acq.shape[3]}, got {tuple(bands.shape)}")
-        out = _ApplyAH.apply(y.to(_complex_dtype(points.dtype)), points, self, progress, bands)
-        return out if per_view else out.sum(dim=0)
+        sets = y.movedim(0, 1) if stacked else y[:, None]  # (V, S, T, R, K)
+        out = _ApplyAH.apply(sets.to(_complex_dtype(points.dtype)), points, self, progress, bands)  # (V, S, ..., Q)
+        if not per_view:
+            out = out.sum(dim=0)  # (S, ..., Q)
+            return out if stacked else out[0]
+        return out.movedim(0, 1) if stacked else out[:, 0]
 
     def point_response(self, source: torch.Tensor, points: torch.Tensor, *, per_view: bool = False) -> torch.Tensor:
         """A^H A e at ``points`` (Q, 3) [m] for a unit reflector at ``source`` (3,) [m]: (Q,)
@@ -252,24 +260,25 @@ class SensingOperator:
     @torch.no_grad()
     def _apply_adjoint(self, y: torch.Tensor, points: torch.Tensor, progress: bool = False,
                        bands: torch.Tensor | None = None) -> torch.Tensor:
-        """A^H y per view: (V, Q); with ``bands`` (B, K), A^H (y w_b) per view: (V, B, Q)."""
-        y_kf = y.permute(0, 3, 1, 2)  # (V, K, T, R)
+        """A^H y per view of S data sets y (V, S, T, R, K): (V, S, Q); with ``bands`` (B, K),
+        A^H (y w_b) per view: (V, S, B, Q)."""
+        y_kf = y.permute(0, 1, 4, 2, 3)  # (V, S, K, T, R)
 
-        def back_project(views: slice, pts: slice) -> torch.Tensor:  # (v, q) or (v, B, q)
-            u_conj, w_conj = self._factors(views, points[pts], conjugate=True)
-            z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, K, T, q)
+        def back_project(views: slice, pts: slice) -> torch.Tensor:  # (v, S, q) or (v, S, B, q)
+            u_conj, w_conj = (factor[:, None] for factor in self._factors(views, points[pts], conjugate=True))
+            z = torch.matmul(y_kf[views].to(points.device), w_conj)  # (v, S, K, T, q)
             if bands is None:
-                return (u_conj * z).sum(dim=(1, 2))
-            return torch.einsum("bk,vkq->vbq", bands.to(z.dtype), (u_conj * z).sum(dim=2))
+                return (u_conj * z).sum(dim=(2, 3))
+            return torch.einsum("bk,vskq->vsbq", bands.to(z.dtype), (u_conj * z).sum(dim=3))
 
-        return self._per_view_points(points, back_project, desc="A^H y", progress=progress)
+        return self._per_view_points(points, back_project, desc="A^H y", progress=progress, share=y.shape[1])
 
     def _per_view_points(self, points: torch.Tensor, compute: Callable[[slice, slice], torch.Tensor], *,
-                         desc: str = "", progress: bool = False) -> torch.Tensor:
-        """(V, ..., Q): ``compute(views, points)`` (v, ..., q) on each memory-budget chunk of
-        ``points`` (Q, 3), put together."""
+                         desc: str = "", progress: bool = False, share: int = 1) -> torch.Tensor:
+        """(V, ..., Q): ``compute(views, points)`` (v, ..., q) on each chunk of ``points`` (Q, 3)
+        sized to ``1 / share`` of the memory budget, put together."""
         blocks: dict[int, list[torch.Tensor]] = {}
-        for views, pts in progress_bar(list(self._chunks(points.shape[0], points.device)), desc=desc,
+        for views, pts in progress_bar(list(self._chunks(points.shape[0], points.device, share)), desc=desc,
                                        enabled=progress):
             blocks.setdefault(views.start, []).append(compute(views, pts))
         return torch.cat([torch.cat(parts, dim=-1) for _, parts in sorted(blocks.items())], dim=0)
@@ -336,8 +345,9 @@ class _ApplyA(torch.autograd.Function):
 
 
 class _ApplyAH(torch.autograd.Function):
-    """x = A^H y per view (per band: A^H (y w_b)); its gradient in y is A applied to the
-    gradient in x (with bands, to sum_b w_bk times the gradient of band b, at frequency k)."""
+    """x = A^H y per view and data set (per band: A^H (y w_b)); its gradient in each data set y
+    is A applied to the gradient in its x (with bands, to sum_b w_bk times the gradient of band
+    b, at frequency k)."""
 
     @staticmethod
     def forward(ctx, y, points, op, progress, bands):
@@ -348,5 +358,8 @@ class _ApplyAH(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad_x):
         points, bands = ctx.saved_tensors
-        c = grad_x[:, None] if bands is None else torch.einsum("bk,vbq->vkq", bands.to(grad_x.dtype), grad_x)
-        return ctx.op._apply(points.detach(), c), None, None, None, None
+        grads = []
+        for grad in grad_x.unbind(1):  # each data set's
+            c = grad[:, None] if bands is None else torch.einsum("bk,vbq->vkq", bands.to(grad.dtype), grad)
+            grads.append(ctx.op._apply(points.detach(), c))
+        return torch.stack(grads, dim=1), None, None, None, None

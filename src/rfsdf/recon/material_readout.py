@@ -63,41 +63,54 @@ class _Unit:
 
 
 @torch.no_grad()
-def read_brightness(renderer, segments: torch.Tensor, count: int, *, gain: float | None = None,
-                    reference: tuple[int, float] | None = None, chunk: int = 1 << 14) -> SurfaceReadout:
+def read_brightness(renderer, labelings: list[tuple[torch.Tensor, int]], *, gain: float | None = None,
+                    reference: tuple[int, float] | None = None) -> list[SurfaceReadout]:
     """The module docstring's split on ``renderer`` (a CoherentRenderer refreshed on the surface
-    to read): ``segments`` (Q,) int64, each surface candidate's segment in [0, count) (-1: none),
-    scaled by a ``reference`` (segment, its |Gamma| at normal incidence) or, without one, a known
-    ``gain``. A segment that renders nothing at the bright voxels (no surface there, or none lit)
-    reads NaN: the data say nothing of it."""
+    to read), once per labeling of its candidates (labels (Q,) int64, each candidate's segment
+    in [0, count), -1: none; e.g. by true object and by component of the mesh), all scaled as the
+    first: by a ``reference`` (its segment, its |Gamma| at normal incidence) or, without one, a
+    known ``gain``. The segments are rendered together, each distinct one once. A segment that
+    renders nothing at the bright voxels (no surface there, or none lit) reads NaN: the data say
+    nothing of it."""
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
-    segments = segments.to(renderer.device)
-    # each segment's candidates alone: one render's cost over all the segments
-    images = [torch.cat([renderer(_Unit, views, part, geometry=False, only=mine) for part in index.split(chunk)], dim=1)
-              for mine in (segments == i for i in range(count))]
-    rendered = np.array([bool(image.abs().max() > 0) if image.numel() else False for image in images])
-    brightness = np.where(rendered, split_powers(images, renderer.observed[:, index].abs()), np.nan)
+    masks = [labels.to(renderer.device) == i for labels, count in labelings for i in range(count)]
+    distinct: list[torch.Tensor] = []  # a component that is an object is rendered once
+    which = []
+    for mask in masks:
+        j = next((j for j, seen in enumerate(distinct) if torch.equal(seen, mask)), len(distinct))
+        if j == len(distinct):
+            distinct.append(mask)
+        which.append(j)
+    rendered = renderer.segment_images(_Unit, views, index, torch.stack(distinct))  # (S, V, X)
+    images = iter([rendered[j] for j in which])
+    observed = renderer.observed[:, index].abs()  # the data's peak voxel is bright: X >= 1
+    readouts = []
+    for _, count in labelings:
+        mine = [next(images) for _ in range(count)]
+        lit = np.array([bool(image.abs().max() > 0) for image in mine])
+        readouts.append(np.where(lit, split_powers(mine, observed), np.nan))
     scale = None
     if reference is not None:
         segment, reflectivity = reference
-        scale = reflectivity / brightness[segment] if brightness[segment] > 0 else None  # NaN > 0 is False
+        scale = reflectivity / readouts[0][segment] if readouts[0][segment] > 0 else None  # NaN > 0 is False
     elif gain is not None:
         scale = renderer.observed_peak / gain
-    return SurfaceReadout(brightness, scale, len(index))
+    return [SurfaceReadout(brightness, scale, len(index)) for brightness in readouts]
 
 
-def read_surface(renderer, sdf, segment_of, count: int, *, gain: float | None = None,
-                 reference: tuple[int, float] | None = None, seed: int = 0) -> SurfaceReadout:
+def read_surface(renderer, sdf, segmenters: list[tuple], *, gain: float | None = None,
+                 reference: tuple[int, float] | None = None, seed: int = 0) -> list[SurfaceReadout]:
     """:func:`read_brightness` of the surface ``sdf`` ((N, 3) -> (N,) [m]): ``renderer`` refreshed on
-    it (its samples drawn with ``seed``), each candidate's segment ``segment_of`` its anchors (Q, 3)
-    float64 [m] -> (Q,) int64."""
+    it (its samples drawn with ``seed``), each labeling of its candidates by a (segment_of, count)
+    of ``segmenters``, segment_of their anchors (Q, 3) float64 [m] -> (Q,) int64."""
     with torch.no_grad():
         points = renderer.grid.points(device=renderer.device)
         values = torch.cat([sdf(chunk.double()).float() for chunk in points.split(1 << 16)])
     renderer.refresh(sdf, values, torch.Generator().manual_seed(seed))
-    segments = segment_of(renderer.candidates.anchors.double().cpu())
-    return read_brightness(renderer, segments, count, gain=gain, reference=reference)
+    anchors = renderer.candidates.anchors.double().cpu()
+    return read_brightness(renderer, [(segment_of(anchors), count) for segment_of, count in segmenters],
+                           gain=gain, reference=reference)
 
 
 def with_primitives(sdf, primitives):

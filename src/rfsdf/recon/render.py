@@ -333,22 +333,9 @@ class CoherentRenderer:
         ``only`` (Q,) bool: these candidates alone, as if the others reflected nothing."""
         if self.candidates is None:
             raise RuntimeError("call refresh() before rendering")
-        points, normals, area, corners = self.surface_geometry(field, geometry=geometry)
-        if probabilities is None:
-            probabilities = self.surface_materials(field)
-        if probabilities is None:
-            amplitude = field.reflectivity(self.candidates.anchors)
-        else:
-            table = self.fresnel_table(tuple(field.materials))
-
-        def reflection(idx: torch.Tensor):
-            """cos(theta_inc) -> Gamma of the samples ``idx``: their free reflectivity, or the
-            Fresnel coefficient expected from their class probabilities."""
-            if probabilities is None:
-                return lambda _cos: amplitude[idx]
-            return lambda cos: table.mixture(cos, probabilities[idx])
-
-        voxels, complex_dtype = self.voxels[voxel_index], torch.promote_types(points.dtype, torch.complex64)
+        surface = self.surface_geometry(field, geometry=geometry)
+        reflection = self._reflection(field, probabilities)
+        voxels, complex_dtype = self.voxels[voxel_index], torch.promote_types(surface[0].dtype, torch.complex64)
         images, line_images = [], []
         for i, v in enumerate(views.tolist()):
             extra = None if lines is None else lines[i]  # (L, 3) or None
@@ -361,11 +348,7 @@ class CoherentRenderer:
                 image = torch.zeros((len(self.band_masks), len(targets)) if bands else (len(targets),),
                                     dtype=complex_dtype, device=self.device)
             else:
-                through = {} if self.sight is None else {
-                    "sight": self.sight[v, idx],
-                    "through_spectrum": None if self.through_spectrum is None else self.through_spectrum[v][:, idx]}
-                y = self.predict_data(v, points[idx], normals[idx], area[idx], reflection(idx),
-                                      None if corners is None else corners[idx], **through)
+                y = self._predict_lit(v, idx, surface, reflection)
                 image = (self._band_images(v, y, targets, norms) if bands
                          else self._normalise(self.operators[v].adjoint(y, targets), norms))
             images.append(image[..., :len(voxels)])
@@ -374,6 +357,50 @@ class CoherentRenderer:
             else:
                 line_images.append(self.full_band(image[..., len(voxels):]) if bands else image[len(voxels):])
         return torch.stack(images) if lines is None else (torch.stack(images), line_images)
+
+    @torch.no_grad()
+    def segment_images(self, field, views: torch.Tensor, voxel_index: torch.Tensor,
+                       segments: torch.Tensor) -> torch.Tensor:
+        """(S, len(views), X) complex: the full-band image at the voxels ``voxel_index`` (X,) of
+        each segment of the surface alone (``segments`` (S, Q) bool over the candidates, each as
+        ``only``), f as at the last refresh: one adjoint of the segments' stacked data per view,
+        so S images cost about one render's phasors and S of its products."""
+        surface = self.surface_geometry(field, geometry=False)
+        reflection = self._reflection(field, self.surface_materials(field, geometry=False))
+        voxels, complex_dtype = self.voxels[voxel_index], torch.promote_types(surface[0].dtype, torch.complex64)
+        images = []
+        for v in views.tolist():
+            data = []
+            for mine in segments:
+                idx = (self.lit[v] & mine).nonzero().squeeze(1)
+                data.append(self._predict_lit(v, idx, surface, reflection) if len(idx) else
+                            torch.zeros(self.operators[v].acq.shape, dtype=complex_dtype, device=self.device))
+            image = self.operators[v].adjoint(torch.stack(data), voxels)  # (S, X): data (S, 1, T, R, K)
+            images.append(self._normalise(image, self.column_norms_sq[v, voxel_index]))
+        return torch.stack(images, dim=1)
+
+    def _reflection(self, field, probabilities: torch.Tensor | None):
+        """idx (Q_v,) -> (cos(theta_inc) -> Gamma) of the candidates ``idx``: ``field``'s free
+        reflectivity, or the Fresnel coefficient expected from its class ``probabilities``
+        (None: :meth:`surface_materials`, with f as it is)."""
+        if probabilities is None:
+            probabilities = self.surface_materials(field)
+        if probabilities is None:
+            amplitude = field.reflectivity(self.candidates.anchors)
+            return lambda idx: lambda _cos: amplitude[idx]
+        table = self.fresnel_table(tuple(field.materials))
+        return lambda idx: lambda cos: table.mixture(cos, probabilities[idx])
+
+    def _predict_lit(self, view: int, idx: torch.Tensor, surface, reflection) -> torch.Tensor:
+        """:meth:`predict_data` of the candidates ``idx`` (lit in ``view``) of ``surface`` (as
+        :meth:`surface_geometry` gives it) with ``reflection`` (as :meth:`_reflection` gives it),
+        seen through the ``through`` scene where there is one."""
+        points, normals, area, corners = surface
+        through = {} if self.sight is None else {
+            "sight": self.sight[view, idx],
+            "through_spectrum": None if self.through_spectrum is None else self.through_spectrum[view][:, idx]}
+        return self.predict_data(view, points[idx], normals[idx], area[idx], reflection(idx),
+                                 None if corners is None else corners[idx], **through)
 
 
 def _require_unambiguous(acquisition, grid: Grid, frequency_step: int) -> None:
