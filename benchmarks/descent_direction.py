@@ -61,8 +61,7 @@ def _misfit(name: str, predicted: torch.Tensor, observed: torch.Tensor) -> torch
 def gradient(losses: basin.SurfaceLosses, surface: DisplacedSurface, name: str, known) -> torch.Tensor:
     """d loss / d (the knots' offsets), every view and every shown voxel, the surface meshed afresh."""
     renderer, voxels, split = losses.renderer, losses.voxels, name == "split"
-    with torch.no_grad():
-        renderer.refresh(surface.sdf, surface.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(surface.sdf, torch.Generator().manual_seed(0))
     probabilities = torch.nn.functional.one_hot(known(renderer.candidates.anchors), len(MATERIAL_CLASSES)).float()
     observed = renderer.band_observed[:, :, voxels] if split else renderer.observed[:, voxels]
     denominator = (((observed[:, 0] * observed[:, 1].conj()) if split else observed).abs() ** 2).sum()

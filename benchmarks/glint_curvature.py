@@ -85,9 +85,7 @@ def main() -> None:
     towards = (0.5 * (tx + rx)).double().numpy()
 
     def read(sdf) -> dict:
-        with torch.no_grad():
-            values = torch.cat([sdf(chunk.double()).float() for chunk in renderer.grid.points().split(1 << 16)])
-        renderer.refresh(sdf, values, torch.Generator().manual_seed(0))
+        renderer.refresh(sdf, torch.Generator().manual_seed(0))
         anchors = renderer.candidates.anchors.double()
         mine = scene.object_index(anchors) == k
         with torch.no_grad():

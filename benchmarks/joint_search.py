@@ -123,7 +123,7 @@ def displaced(args) -> Displaced:
     settings = basin.Settings(device="cpu", radar=args.radar)
     scene, losses = basin.surface_losses(settings)
     renderer = losses.renderer
-    renderer.refresh(scene.sdf, scene.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(scene.sdf, torch.Generator().manual_seed(0))
     points, normals, area, corners = renderer.surface_geometry(basin.FixedSurface(scene.sdf), geometry=False)
     probabilities = torch.nn.functional.one_hot(losses.known(renderer.candidates.anchors), len(MATERIAL_CLASSES)).float()
     lower = torch.as_tensor(scene.lower_m, dtype=points.dtype)

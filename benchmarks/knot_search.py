@@ -105,7 +105,7 @@ class _KnotSearch:
         self.voxels, self.index, self.scale = voxels, losses.voxels, losses.gain / renderer.observed_peak
         surface = basin.FixedSurface(sdf)
         with torch.no_grad():
-            renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            renderer.refresh(sdf, torch.Generator().manual_seed(0))
             self.probabilities = torch.nn.functional.one_hot(losses.known(renderer.candidates.anchors),
                                                              len(MATERIAL_CLASSES)).float()
             self.images = renderer(surface, torch.arange(renderer.num_views), self.index, geometry=False,

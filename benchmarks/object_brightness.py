@@ -45,9 +45,7 @@ def object_gains(scene, data, settings: DemoSettings, sdf=None, sample_seed: int
     renderer = CoherentRenderer(data, grid)
     field = PrimitiveField(SceneModel.from_table(scene.spec.model_dump(mode="json"), f"{scene.name} (nothing free)"))
     sdf = sdf or field.sdf
-    with torch.no_grad():
-        values = torch.cat([sdf(chunk.double()).float() for chunk in grid.points().split(1 << 16)])
-    renderer.refresh(sdf, values, torch.Generator().manual_seed(settings.seed if sample_seed is None else sample_seed))
+    renderer.refresh(sdf, torch.Generator().manual_seed(settings.seed if sample_seed is None else sample_seed))
     anchors = renderer.candidates.anchors.double()
     probabilities = field.material(anchors).float()
     with torch.no_grad():

@@ -78,7 +78,7 @@ def main() -> None:
             field = DilatedScene(scene, index, d / 1e3, carrier_hz)
             with torch.no_grad():
                 for seed in range(SEEDS):
-                    renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(seed))
+                    renderer.refresh(field.sdf, torch.Generator().manual_seed(seed))
                     losses[i, seed] = float(amplitude_loss(renderer(field, views, near), observed[:, near]))
         mean = losses.mean(1)
         result["objects"][name] = {"loss_mean": mean.round(4).tolist(), "loss_seed_std": losses.std(1).round(4).tolist(),

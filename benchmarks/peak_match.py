@@ -37,7 +37,7 @@ def line_images(renderer, known, lines: torch.Tensor, view: torch.Tensor, sdf) -
     the renderer's surface samples refreshed on ``sdf``."""
     per_view = [torch.nonzero(view == v).squeeze(1) for v in range(renderer.num_views)]
     with torch.no_grad():
-        renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
+        renderer.refresh(sdf, torch.Generator().manual_seed(0))
         classes = known(renderer.candidates.anchors)
         probabilities = torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float()
         _, images = renderer(FixedSurface(sdf), torch.arange(renderer.num_views), torch.arange(1), geometry=False,

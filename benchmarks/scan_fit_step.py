@@ -76,9 +76,7 @@ def main() -> None:
     rc = config.render
     renderer, build_s = _timed(lambda: CoherentRenderer(measurements, grid, element_step=rc.element_step,
                                                         frequency_step=rc.frequency_step, bands=BANDS))
-    with torch.no_grad():
-        values = torch.cat([field.sdf(chunk) for chunk in grid.points().split(1 << 16)])
-    renderer.refresh(field.sdf, values, torch.Generator().manual_seed(0))
+    renderer.refresh(field.sdf, torch.Generator().manual_seed(0))
     generator = torch.Generator().manual_seed(0)
     voxels = torch.randperm(len(renderer.voxels), generator=generator)[:VOXELS]
     targets = renderer.voxels[voxels]

@@ -49,7 +49,7 @@ def agreement(scene_name: str, radar_name: str, thinnings) -> dict:
         renderer = CoherentRenderer(data, grid, element_step=element_step, frequency_step=frequency_step,
                                     dtype=torch.float64)
         with torch.no_grad():
-            renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            renderer.refresh(truth.sdf, torch.Generator().manual_seed(0))
             predicted = renderer(truth, torch.arange(renderer.num_views), torch.arange(len(renderer.voxels)),
                                  probabilities=truth.material(renderer.candidates.anchors))
         predicted = predicted * (SIMULATED_GAIN / renderer.observed_peak)  # into the observed images' units, as a fit

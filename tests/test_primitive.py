@@ -62,9 +62,7 @@ def test_the_primitive_path_gradients_match_finite_differences(two_walls):
     model = SceneModel.from_table(_walls({"start": [-0.031, 0.001, 0.0]}, {"start": [0.029, 0.0, -0.001]}), "model")
     field = PrimitiveField(model)
     renderer = CoherentRenderer(data, Grid((-0.06,) * 3, (0.06,) * 3, (16,) * 3), dtype=torch.float64)
-    with torch.no_grad():
-        values = field.sdf(renderer.voxels)
-    renderer.refresh(field.sdf, values, torch.Generator().manual_seed(0))
+    renderer.refresh(field.sdf, torch.Generator().manual_seed(0))
     views, voxels = torch.arange(renderer.num_views), torch.arange(len(renderer.voxels))
     observed = renderer.observed.abs()
 

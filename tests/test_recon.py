@@ -118,8 +118,7 @@ def test_a_spheres_brightness_grows_with_its_radius_in_the_gradient_too(sphere_d
 
     def log_energy(radius, seed):
         ball = _Ball(radius)
-        with torch.no_grad():
-            renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(seed))
+        renderer.refresh(ball.sdf, torch.Generator().manual_seed(seed))
         energy = torch.log((renderer(ball, views, voxels).abs() ** 2).sum())
         energy.backward()
         return float(energy.detach()), float(ball.radius.grad)
@@ -174,7 +173,7 @@ def test_the_renderers_facets_of_the_true_surface_give_the_data(sphere_data):
     for surface in ("facets", "points"):
         renderer = CoherentRenderer(data, _grid(), surface=surface)
         with torch.no_grad():
-            renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            renderer.refresh(truth.sdf, torch.Generator().manual_seed(0))
             predicted = renderer(truth, torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0]))
         observed = renderer.observed
         correlation[surface] = ((predicted.conj() * observed).sum(1).abs()
@@ -188,8 +187,7 @@ def test_the_material_path_of_a_metal_surface_is_the_free_path_at_reflectivity_o
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid(10))
     ball = _Ball(RADIUS + 0.001)
-    with torch.no_grad():
-        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(ball.sdf, torch.Generator().manual_seed(0))
     views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
     free = renderer(ball, views, voxels)
     ball.materials, ball.material_head = ("metal", "glass"), True
@@ -201,8 +199,7 @@ def test_renderer_and_loss_pass_gradcheck_in_float64(sphere_data):
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid(6), spacing_m=0.006, dtype=torch.float64)
     start = _Ball(RADIUS + 0.002, dtype=torch.float64)
-    with torch.no_grad():
-        renderer.refresh(start.sdf, start.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(start.sdf, torch.Generator().manual_seed(0))
     views, voxels = torch.tensor([0, 4]), torch.arange(0, renderer.voxels.shape[0], 3)
     observed = renderer.observed.abs()[views][:, voxels]
 
@@ -221,8 +218,7 @@ def test_gradient_in_the_radius_matches_finite_differences(sphere_data):
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid())
     ball = _Ball(RADIUS + 0.003)
-    with torch.no_grad():
-        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(1))
+    renderer.refresh(ball.sdf, torch.Generator().manual_seed(1))
     views, voxels = torch.arange(6), torch.arange(renderer.voxels.shape[0])
     observed = renderer.observed.abs()
 
@@ -254,7 +250,7 @@ def _config(**train) -> ReconConfig:
 
 def _mean_radius(field, renderer) -> float:
     with torch.no_grad():
-        renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(5))
+        renderer.refresh(field.sdf, torch.Generator().manual_seed(5))
         points, _, area, _ = renderer.surface_geometry(field)
         return float((points.norm(dim=1) * area).sum() / area.sum())
 
@@ -1063,7 +1059,7 @@ def test_the_renderers_sub_band_images_add_up_to_its_full_band_image(sphere_data
     renderer = CoherentRenderer(data, _grid(10), bands=2)
     views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
     with torch.no_grad():
-        renderer.refresh(truth.sdf, truth.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+        renderer.refresh(truth.sdf, torch.Generator().manual_seed(0))
         full, halves = renderer(truth, views, voxels), renderer(truth, views, voxels, bands=True)
     torch.testing.assert_close(halves.mean(1), full, rtol=1e-4, atol=1e-5 * float(full.abs().max()))
     full_band = CoherentRenderer(data, _grid(10))  # its observed images from the whole band at once
@@ -1128,7 +1124,7 @@ def test_the_renderer_images_lines_as_it_images_voxels(sphere_data):
     _, data = sphere_data
     renderer = CoherentRenderer(data, _grid(10), bands=2)
     field = _Ball(RADIUS)
-    renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(field.sdf, torch.Generator().manual_seed(0))
     views, voxels = torch.tensor([0, 3]), torch.arange(0, 1000, 7)
     lines = [renderer.voxels[voxels[:40]], None]
     for bands in (False, True):

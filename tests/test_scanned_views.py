@@ -185,7 +185,7 @@ def test_the_fit_renders_a_scan_as_one_view_that_matches_its_data(small_sar):
     for step, frames in ((1, 12), (2, 3)):
         renderer = CoherentRenderer(data, grid, element_step=step)
         assert renderer.num_views == 2 and [len(f) for f in renderer.frames] == [frames, frames]
-        renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+        renderer.refresh(ball.sdf, torch.Generator().manual_seed(0))
         predicted = renderer(ball, torch.arange(2), torch.arange(len(renderer.voxels)))
         observed = renderer.observed
         correlation = (predicted.conj() * observed).sum(1).abs() / (predicted.norm(dim=1) * observed.norm(dim=1))
@@ -202,7 +202,7 @@ def test_a_wide_scan_is_rendered_as_bright_as_its_data_each_frame_from_its_own_p
     data = simulate(load_scene("sphere"), load_radar(path))
     renderer = CoherentRenderer(data, Grid((-0.04,) * 3, (0.04,) * 3, (24,) * 3))
     ball = _Ball()
-    renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(ball.sdf, torch.Generator().manual_seed(0))
     predicted = renderer(ball, torch.arange(2), torch.arange(len(renderer.voxels))) * (SIMULATED_GAIN
                                                                                       / renderer.observed_peak)
     observed = renderer.observed
@@ -260,7 +260,7 @@ def test_the_renderer_keeps_every_nth_frequency_where_the_range_stays_unambiguou
     renderer = CoherentRenderer(data, grid, frequency_step=2)
     assert renderer.po_spectrum.shape == (4,)
     ball = _Ball()
-    renderer.refresh(ball.sdf, ball.sdf(renderer.voxels), torch.Generator().manual_seed(0))
+    renderer.refresh(ball.sdf, torch.Generator().manual_seed(0))
     predicted = renderer(ball, torch.arange(2), torch.arange(len(renderer.voxels)))
     correlation = (predicted.conj() * renderer.observed).sum(1).abs() / (predicted.norm(dim=1) * renderer.observed.norm(dim=1))
     assert correlation.min() > 0.999

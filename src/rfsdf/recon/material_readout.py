@@ -104,10 +104,7 @@ def read_surface(renderer, sdf, segmenters: list[tuple], *, gain: float | None =
     """:func:`read_brightness` of the surface ``sdf`` ((N, 3) -> (N,) [m]): ``renderer`` refreshed on
     it (its samples drawn with ``seed``), each labeling of its candidates by a (segment_of, count)
     of ``segmenters``, segment_of their anchors (Q, 3) float64 [m] -> (Q,) int64."""
-    with torch.no_grad():
-        points = renderer.grid.points(device=renderer.device)
-        values = torch.cat([sdf(chunk.double()).float() for chunk in points.split(1 << 16)])
-    renderer.refresh(sdf, values, torch.Generator().manual_seed(seed))
+    renderer.refresh(sdf, torch.Generator().manual_seed(seed))
     anchors = renderer.candidates.anchors.double().cpu()
     return read_brightness(renderer, [(segment_of(anchors), count) for segment_of, count in segmenters],
                            gain=gain, reference=reference)

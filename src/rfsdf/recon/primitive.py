@@ -224,13 +224,10 @@ def fit_primitive(problem: Problem, model: SceneModel, *, steps: int = 150, lr: 
     observed = renderer.observed.abs()
     probabilities = data_voxel_probabilities(observed, data_focus)
     optimizer = torch.optim.Adam(field.parameter_groups(lr))
-    grid_points = problem.grid.points(device=device)
     losses = []
     for step in progress_bar(range(steps), desc="primitive fit", enabled=progress):
         if step % refresh_every == 0:
-            with torch.no_grad():
-                values = torch.cat([field.sdf(chunk).float() for chunk in grid_points.split(1 << 16)])
-            renderer.refresh(field.sdf, values, generator)
+            renderer.refresh(field.sdf, generator)
         fraction = step / max(steps - 1, 1)
         size = round(cell_voxels_start + fraction * (cell_voxels_end - cell_voxels_start))
         views, cells, voxels = data_batch(renderer.num_views, views_per_step, probabilities, voxels_per_step,

@@ -193,11 +193,12 @@ class CoherentRenderer:
         by each band's share K_b / K of the frequencies (the adjoint is linear in the data)."""
         return torch.einsum("...bx,b->...x", band_images, self.band_shares.to(band_images.dtype))
 
-    def refresh(self, sdf, voxel_values_m: torch.Tensor, generator: torch.Generator) -> None:
-        """New surface candidates of ``sdf`` and their facing/shadow masks in every view.
-
-        voxel_values_m : (N,) f at the grid's voxel centres (no gradient)."""
-        values = voxel_values_m.to(self.device)
+    @torch.no_grad()
+    def refresh(self, sdf, generator: torch.Generator) -> None:
+        """New surface candidates of ``sdf`` ((N, 3) -> (N,) [m]) and their facing/shadow masks
+        in every view, held fixed (no gradient) until the next refresh; f at the grid's voxel
+        centres says where the surface can be, and ``generator`` draws a "points" surface's points."""
+        values = torch.cat([sdf(chunk).to(self.voxels.dtype) for chunk in self.voxels.split(1 << 16)])
         if self.surface == "facets":
             self.candidates = surface_mesh(sdf, self.voxels, values, self.voxel_m, self.spacing_m)
         else:

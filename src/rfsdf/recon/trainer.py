@@ -297,9 +297,7 @@ class Trainer:
     @torch.no_grad()
     def refresh_surface(self) -> None:
         """New surface samples of the current field (and their facing/shadow masks)."""
-        points = self.problem.grid.points(device=self.device)
-        values = torch.cat([self.field.sdf(chunk) for chunk in points.split(1 << 16)])
-        self.renderer.refresh(self.field.sdf, values, self.generator)
+        self.renderer.refresh(self.field.sdf, self.generator)
 
     def cell_size(self) -> int:
         """Edge [voxels] of the cubes the data loss compares at this step: ``cell_voxels``, or

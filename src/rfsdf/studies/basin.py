@@ -246,7 +246,7 @@ class SurfaceLosses:
         fit's material head might read it; None: each facet its own class."""
         renderer = self.renderer
         with torch.no_grad():
-            renderer.refresh(sdf, sdf(renderer.voxels), torch.Generator().manual_seed(0))
+            renderer.refresh(sdf, torch.Generator().manual_seed(0))
             classes = self.known(renderer.candidates.anchors)
             probabilities = (torch.nn.functional.one_hot(classes, len(MATERIAL_CLASSES)).float() if reading is None
                              else reading(classes))

@@ -71,8 +71,7 @@ def run(settings: Settings) -> Result:
     renderer = CoherentRenderer(data, grid, spacing_m=0.006, dtype=torch.float64)
     field = RadarField(scene.lower_m, scene.upper_m, levels=2, depth=settings.depth, width=settings.width,
                        init_radius_m=0.022).double()
-    with torch.no_grad():
-        renderer.refresh(field.sdf, field.sdf(renderer.voxels), torch.Generator().manual_seed(settings.seed))
+    renderer.refresh(field.sdf, torch.Generator().manual_seed(settings.seed))
     views, voxels = torch.arange(renderer.num_views), torch.arange(renderer.voxels.shape[0])
     observed = renderer.observed.abs()
 
