@@ -37,7 +37,7 @@ from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.recon import ReconConfig, Trainer
-from rfsdf.recon.material_readout import PRIMITIVE_BAND_M
+from rfsdf.recon.material_readout import PRIMITIVE_BAND_M, primitive_union
 
 
 def _peak_distances(trainer: Trainer, scene) -> dict[str, float]:
@@ -69,8 +69,7 @@ def _covered(trainer: Trainer, scene) -> dict[str, float]:
     owner = scene.object_index(anchors)
     near = torch.zeros(len(anchors), dtype=torch.bool)
     if trainer.primitives:
-        gaps = torch.stack([primitive(anchors) for primitive in trainer.primitives]).abs().min(0).values
-        near = gaps < PRIMITIVE_BAND_M
+        near = primitive_union(anchors, trainer.primitives).abs() < PRIMITIVE_BAND_M
     return {obj.name: float(near[owner == i].double().mean()) if bool((owner == i).any()) else 0.0
             for i, obj in enumerate(scene.objects)}
 

@@ -19,7 +19,7 @@ from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss
 from rfsdf.recon.calibration import check_reference
 from rfsdf.recon.losses import material_cross_entropy, material_entropy
-from rfsdf.recon.material_readout import read_brightness, read_surface, with_primitives
+from rfsdf.recon.material_readout import primitive_union, read_brightness, read_surface, with_primitives
 from rfsdf.recon.object_primitives import FramedPrimitive
 from rfsdf.recon.trainer import initial_field
 from rfsdf.recon.warm_start import fit_to_image
@@ -279,3 +279,6 @@ def test_the_surface_read_is_the_primitives_near_them_and_the_network_elsewhere(
                           dtype=torch.float64)
     assert surface(points).tolist() == pytest.approx([0.001, -0.001, -0.05, 0.15], abs=1e-7)
     assert with_primitives(plane, [])(points).tolist() == pytest.approx((points[:, 2] - 0.05).tolist(), abs=1e-7)
+    above = FramedPrimitive("sphere", [0.0, 0.0, 0.03], [0.0, 0.0, 1e-6], [0.01])  # the union: the nearer's
+    assert primitive_union(points.float(), [sphere, above]).tolist() == pytest.approx([0.001, -0.001, 0.03, 0.16],
+                                                                                        abs=1e-7)

@@ -30,7 +30,8 @@ import torch
 
 from .calibration import BRIGHT, split_powers
 
-__all__ = ["PRIMITIVE_BAND_M", "SurfaceReadout", "read_brightness", "read_surface", "with_primitives"]
+__all__ = ["PRIMITIVE_BAND_M", "SurfaceReadout", "primitive_union", "read_brightness", "read_surface",
+           "with_primitives"]
 
 PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface read is the primitive's [m]
 
@@ -110,6 +111,14 @@ def read_surface(renderer, sdf, segmenters: list[tuple], *, gain: float | None =
                            gain=gain, reference=reference)
 
 
+def primitive_union(points: torch.Tensor, primitives) -> torch.Tensor:
+    """(N,) [m] the SDF of the union of ``primitives`` (at least one) at ``points`` (N, 3) [m], in
+    float64 on the CPU, where the primitives' parameters live: the read surface is theirs where
+    its magnitude is under ``PRIMITIVE_BAND_M`` (:func:`with_primitives`)."""
+    held = points.double().cpu()
+    return torch.stack([primitive(held) for primitive in primitives]).min(0).values
+
+
 def with_primitives(sdf, primitives):
     """(N, 3) -> (N,) [m]: the ``primitives``' SDF (their union) within ``PRIMITIVE_BAND_M`` of them,
     ``sdf``'s (float32 points) elsewhere: the fitted surface with the shapes the primitives fitted
@@ -118,7 +127,6 @@ def with_primitives(sdf, primitives):
         network = sdf(points.float()).to(points.dtype)
         if not primitives:
             return network
-        held = points.double().cpu()  # the primitives' parameters live on the CPU
-        nearest = torch.stack([primitive(held) for primitive in primitives]).min(0).values.to(network)
+        nearest = primitive_union(points, primitives).to(network)
         return torch.where(nearest.abs() < PRIMITIVE_BAND_M, nearest, network)
     return surface
