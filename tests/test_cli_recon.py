@@ -1,10 +1,15 @@
 import json
 
+import numpy as np
 import torch
 import trimesh
 from click.testing import CliRunner
 
 from rfsdf.cli import main
+from rfsdf.material_estimates import read_materials
+from rfsdf.radar import read_image, read_measurements
+from rfsdf.recon import Problem, Trainer, load_recon_config
+from rfsdf.recon.checkpoint import CHECKPOINT_NAME, read_checkpoint
 
 
 def test_reconstruct_mesh_evaluate_and_resume(tmp_path, tiny_files):
@@ -28,6 +33,39 @@ def test_reconstruct_mesh_evaluate_and_resume(tmp_path, tiny_files):
     assert result.exit_code == 0, result.output
     metrics = json.loads(result.output)
     assert metrics["chamfer_l1_mm"] > 0 and 0 <= metrics["fscore"] <= 1
+
+
+def test_materials_of_a_run_folder_read_the_data_as_the_fit_in_hand_does(tmp_path, tiny_files):
+    """`rfsdf materials RUN` rebuilds the fit from its checkpoint (config, grid, field) and the
+    measurements, and prints the closed-form readout that the same fit, still in hand, reads;
+    a checkpoint written before the grid was kept gets the head's readings and a line saying why."""
+    runner = CliRunner()
+    args = ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
+            "--out", str(tmp_path / "run"), "--config", str(tmp_path / "tiny.toml")]
+    assert runner.invoke(main, args).exit_code == 0
+    trainer = Trainer(Problem(read_measurements(tmp_path / "data.h5"), read_image(tmp_path / "image.h5").grid,
+                              str(tmp_path / "data.h5")), load_recon_config(tmp_path / "tiny.toml"), tmp_path / "run")
+    fit = trainer.fit(resume=True)
+    in_hand = read_materials(trainer, trimesh.load(tmp_path / "run" / "mesh.ply", force="mesh"))[1]
+    assert fit.field.material_head is not None and len(in_hand) >= 1
+    table = runner.invoke(main, ["materials", str(tmp_path / "run")])
+    assert table.exit_code == 0, table.output
+    rows = [line.split() for line in table.output.splitlines() if line.startswith("  component")]
+    assert [row[7] for row in rows] == [f"{value:.2f}" if np.isfinite(value) else "-" for value in in_hand]
+    assert "no closed-form readout" not in table.output
+
+    state = read_checkpoint(tmp_path / "run" / CHECKPOINT_NAME, "cpu")
+    state["grid"]["upper_m"] = [float("inf")] * 3
+    torch.save(state, tmp_path / "run" / CHECKPOINT_NAME)
+    refused = runner.invoke(main, ["materials", str(tmp_path / "run")])
+    assert refused.exit_code == 2 and refused.output.count("\n") == 1, refused.output
+    assert "checkpoint.pt: grid: not a grid rfsdf wrote (its box is not finite)" in refused.output
+    del state["grid"]
+    torch.save(state, tmp_path / "run" / CHECKPOINT_NAME)
+    table = runner.invoke(main, ["materials", str(tmp_path / "run")])
+    assert table.exit_code == 0, table.output
+    assert table.output.rstrip().endswith("(no closed-form readout: the run's checkpoint keeps no grid "
+                                          "(written before rfsdf kept one))")
 
 
 def test_reconstruct_and_image_need_no_scene(tmp_path, tiny_files):

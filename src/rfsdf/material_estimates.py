@@ -378,11 +378,46 @@ def materials_table(materials: dict) -> str:
     return "\n".join(lines)
 
 
+def _run_readout(folder, state: dict, measurements, data_path, mesh: trimesh.Trimesh, scene,
+                 stated: tuple[str, str] | None) -> tuple[np.ndarray, np.ndarray] | str:
+    """:func:`read_materials` for a ``reconstruct`` run folder, its fit rebuilt from its checkpoint
+    (config, grid, field, primitives) and ``measurements``; or why it cannot be read, in words."""
+    from .errors import RfsdfError
+    from .geometry import Grid
+    from .recon import Problem, ReconConfig, Trainer
+    from .recon.checkpoint import CHECKPOINT_NAME
+
+    if "grid" not in state:
+        return "the run's checkpoint keeps no grid (written before rfsdf kept one)"
+    if stated is not None and (scene is None or stated[0] not in [o.name for o in scene.objects]):
+        return f"the calibration reference {stated[0]} needs --scene, a scene file that places it"
+    try:
+        held = state["grid"]
+        box = [tuple(map(float, held[key])) for key in ("lower_m", "upper_m")]
+        if not np.isfinite(box).all():
+            raise ValueError("its box is not finite")
+        grid = Grid(*box, tuple(map(int, held["shape"])))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RfsdfError(f"{folder / CHECKPOINT_NAME}: grid: not a grid rfsdf wrote ({exc})") from None
+    gain = state.get("gain")
+    if gain is not None and not (isinstance(gain, (int, float)) and np.isfinite(gain) and gain > 0):
+        raise RfsdfError(f"{folder / CHECKPOINT_NAME}: gain: not a gain rfsdf wrote ({gain!r})")
+    problem = Problem(measurements, grid, str(data_path), gain=gain)
+    if problem.digest() != state.get("data_digest"):
+        return (f"{data_path} on the run's grid is not what it was fitted on (a background taken out, "
+                "a scene seen through?)")
+    config = validate(ReconConfig, state.get("config"), f"{folder / CHECKPOINT_NAME}: config").on_device("cpu")
+    trainer = Trainer(problem, config, folder)
+    trainer.load()
+    return read_materials(trainer, mesh, scene=scene, reference=stated)
+
+
 def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> str:
     """The table of :func:`materials_table` for a demo folder (its metrics.json) or a
-    ``reconstruct`` run folder (its field's head on its mesh.ply, seen by the views of the
-    measurements at ``data_path``, default the file its checkpoint names; rows per object
-    of the scene ``scene_name`` when given)."""
+    ``reconstruct`` run folder (its field's head on its mesh.ply and the closed-form readout of
+    its fit, seen by the views of the measurements at ``data_path``, default the file its
+    checkpoint names; rows per object of the scene ``scene_name`` when given; where the readout
+    cannot be read, a last line says why)."""
     import json
     from pathlib import Path
 
@@ -411,19 +446,24 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
     data_path = data_path or state.get("data_source")
     if data_path is None or not Path(data_path).is_file():
         raise RfsdfError(f"{folder}: the measurements it was fitted on ({data_path}) are not at hand; pass --data")
-    acquisition = read_measurements(data_path).acquisition
+    measurements = read_measurements(data_path)
     mesh_path = folder / "mesh.ply"
     mesh = (trimesh.load(mesh_path, force="mesh") if mesh_path.is_file()
             else extract_mesh(field.sdf, field.lower_m, field.upper_m, 96))
     scene = load_scene(scene_name) if scene_name is not None else None
-    calibration, reference = calibration_text(state.get("gain")), None
+    calibration, stated = calibration_text(state.get("gain")), None
     if (folder / CALIBRATION_NAME).is_file():
         try:
             held = json.loads(input_file(folder / CALIBRATION_NAME).read_text())
             calibration = Calibration(held["reference"], float(held["gain"]),
                                       None if held["ratio"] is None else float(held["ratio"]))
-        except (ValueError, KeyError, TypeError) as exc:
+            name, _, material = calibration.reference.partition("=")
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise RfsdfError(f"{folder / CALIBRATION_NAME}: not a calibration rfsdf wrote ({exc})") from None
-        calibration, reference = calibration_text(None, calibration), calibration.reference.partition("=")[0]
-    report = estimate_materials(field, mesh, acquisition, scene=scene, calibration=calibration, reference=reference)
-    return materials_table(report.as_dict())
+        calibration, stated = calibration_text(None, calibration), (name, material)
+    readout = _run_readout(folder, state, measurements, data_path, mesh, scene, stated)
+    report = estimate_materials(field, mesh, measurements.acquisition, scene=scene, calibration=calibration,
+                                reference=None if stated is None else stated[0],
+                                readout=None if isinstance(readout, str) else readout)
+    table = materials_table(report.as_dict())
+    return table + (f"\n  (no closed-form readout: {readout})" if isinstance(readout, str) else "")

@@ -379,7 +379,8 @@ def materials_cmd(folder: Path, data_path: Path | None, scene_name: str | None):
     per connected component, class probabilities, eps' with its interval, observed share.
 
     FOLDER is a demo folder (read from its metrics.json) or a `reconstruct` run folder (its
-    field's material head on its mesh.ply, observed by the views of --data)."""
+    field's material head on its mesh.ply, observed by the views of --data, and the data's
+    closed-form readout through its fit, rebuilt from the checkpoint)."""
     from ..material_estimates import run_materials
 
     click.echo(run_materials(folder, data_path=data_path, scene_name=scene_name))

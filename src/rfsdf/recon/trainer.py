@@ -208,6 +208,8 @@ class Trainer:
             "log": [asdict(r) for r in self.log], "config": self.config.model_dump(), "warm_field": self.warm_state,
             "data_digest": self.problem.digest(), "data_source": self.problem.source, "gain": self.problem.gain,
             "peaks": self.peaks, "primitives": [primitive.state() for primitive in self.primitives],
+            "grid": {"lower_m": list(self.problem.grid.lower_m), "upper_m": list(self.problem.grid.upper_m),
+                     "shape": list(self.problem.grid.shape)},  # what a later readout renders on (run_materials)
         })
         write_log(self.run_dir, [asdict(r) for r in self.log])
 
