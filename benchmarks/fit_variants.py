@@ -6,7 +6,8 @@ how far they lie from the true surface (beyond 2 mm, within 1 mm, amplitude-weig
 fragment's primitive where they are fitted, the warm start's and the fit's observed-surface and
 whole-surface Chamfer-L1 with each object's (and its part of the observed one), the share of the
 warm start's observed error the fit removes, and with a material head the demo's material readout
-(the head's and the closed-form readout's, ``rfsdf.material_estimates.read_materials``).
+(the head's and the closed-form readout's, ``rfsdf.material_estimates.read_materials``; a
+relative fit's also in the simulator's gain given after the fit, ``readout_known_gain``).
 A variant's ``"gain"`` (beside its ReconConfig tables) holds that radar gain in the fit, as a
 calibration capture gives it (1.0 for simulated data), instead of fitting one at each step.
 

@@ -32,6 +32,7 @@ from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
+from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig, Trainer
 from rfsdf.recon.calibration import check_reference
 
@@ -49,18 +50,30 @@ def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict
     """The fit's material readout as the demo reports it: per object its true and predicted
     class, what predicted it (the data's closed-form readout or the head), the head's
     reflectivity and the readout, the observed share, and the class accuracy over the objects
-    counted."""
+    counted. A relative fit (no reference, no gain held) is also read in the simulator's gain,
+    given after the fit as a calibration capture's would be: each object's ``readout_known_gain``
+    and ``predicted_known_gain`` (the same rule), and their ``accuracy_known_gain``."""
     calibration = None if reference is None else check_reference(trainer, reference)
-    readout = read_materials(trainer, mesh, scene=scene,
-                             reference=None if reference is None else (reference.name, reference.material))
-    report = estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
-                                calibration=calibration_text(trainer.problem.gain, calibration),
-                                reference=None if reference is None else reference.name, readout=readout)
-    return {"accuracy": report.accuracy, "calibration": report.calibration,
-            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "source": o.source,
-                                 "reflectivity": o.reflectivity, "readout": o.readout,
-                                 "observed_fraction": o.observed_fraction, "reference": o.reference}
-                        for o in report.objects}}
+    stated = None if reference is None else (reference.name, reference.material)
+
+    def report(gain=None):
+        return estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
+                                  calibration=calibration_text(trainer.problem.gain, calibration),
+                                  reference=None if reference is None else reference.name,
+                                  readout=read_materials(trainer, mesh, scene=scene, reference=stated, gain=gain))
+
+    reported = report()
+    row = {"accuracy": reported.accuracy, "calibration": reported.calibration,
+           "objects": {o.name: {"true": o.true, "predicted": o.predicted, "source": o.source,
+                                "reflectivity": o.reflectivity, "readout": o.readout,
+                                "observed_fraction": o.observed_fraction, "reference": o.reference}
+                       for o in reported.objects}}
+    if reference is None and trainer.problem.gain is None:
+        known = report(SIMULATED_GAIN)
+        row["accuracy_known_gain"] = known.accuracy
+        for o in known.objects:
+            row["objects"][o.name].update(readout_known_gain=o.readout, predicted_known_gain=o.predicted)
+    return row
 
 
 def _spread(rows: list[dict[str, float]]) -> dict[str, dict[str, float]]:

@@ -201,20 +201,22 @@ def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, 
     return estimates
 
 
-def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None,
-                   reference: tuple[str, str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tuple[str, str] | None = None,
+                   gain: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """|Gamma| at normal incidence read from the data in closed form (the module docstring) for a
     finished :class:`~rfsdf.recon.Trainer`: per object of ``scene`` (O,) (told apart by the true
     objects) and per component of ``mesh`` (C,) (as :func:`component_materials` orders them), NaN
     where the data show nothing of it. Scaled by the ``reference`` (object name, stated material) as
-    the fit was calibrated, else by the fit's known gain, else by the gain the finished fit wants."""
+    the fit was calibrated, else by ``gain`` (the radar's [data units per renderer unit], known but
+    not held in the fit: a capture's, 1 for simulated data), else by the fit's known gain, else by
+    the gain the finished fit wants."""
     from scipy.spatial import cKDTree
 
     from .recon.calibration import fitted_gain
     from .recon.material_readout import read_surface, with_primitives
 
     renderer, frequency_hz = trainer.renderer, trainer.problem.measurements.acquisition.center_frequency_hz
-    gain = trainer.problem.gain
+    gain = trainer.problem.gain if gain is None else gain
     if gain is None and reference is None:
         gain = fitted_gain(trainer)
     scale = {"gain": gain}
