@@ -10,8 +10,8 @@ import trimesh
 
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
-    MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, class_accuracy, component_materials,
-    eps_of_reflectivity, object_materials, read_materials, scene_reference, with_readout,
+    MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, MaterialReport, class_accuracy, component_materials,
+    eps_of_reflectivity, materials_table, object_materials, read_materials, scene_reference, with_readout,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
@@ -201,6 +201,18 @@ def test_the_report_reads_each_ball_in_closed_form_by_object_and_by_component(tw
     known, _ = read_materials(trainer, mesh, scene=scene, gain=SIMULATED_GAIN)  # the relative fit in the radar's gain
     np.testing.assert_allclose(known, relative * fitted_gain(trainer) / SIMULATED_GAIN, rtol=1e-5)
     assert known[0] == pytest.approx(1.0, rel=0.2), known
+
+
+def test_the_table_keeps_the_components_classes_under_the_predicted_column():
+    """With objects (a true column) the components' rows leave that column blank, so every row's
+    predicted class stands under "predicted"."""
+    ball = MaterialEstimate("ball", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19), "wood")
+    part = dataclasses.replace(ball, name="component 0 (3.0 cm^2)", predicted="glass", true=None)
+    table = materials_table(MaterialReport([ball], [part], 1.0, "relative").as_dict()).splitlines()
+    column = table[1].index("predicted")
+    assert table[2][column:].startswith("wood ") and table[3][column:].startswith("glass "), table
+    alone = materials_table(MaterialReport([], [part], None, "relative").as_dict()).splitlines()
+    assert alone[2][alone[1].index("predicted"):].startswith("glass "), alone
 
 
 def test_a_readout_of_a_passive_surface_names_the_class_and_any_other_leaves_the_head_s():

@@ -358,18 +358,20 @@ def materials_table(materials: dict) -> str:
     def number(value) -> str:
         return "-" if value is None else f"{value:.2f}"
 
+    with_truth = bool(materials["objects"])  # a column of true classes, blank for the components
+
     def line(e: dict) -> str:
         eps = number(e["eps_real"])
         if e["eps_real_interval"] is not None:
             eps += f" [{e['eps_real_interval'][0]:.2f}, {e['eps_real_interval'][1]:.2f}]"
-        truth = "" if e.get("true") is None else f"{e['true']:<13}"
+        truth = f"{e.get('true') or '':<13}" if with_truth else ""
         if e.get("reference"):
             return f"  {e['name']:<26}{truth}(the calibration reference, rendered as stated)"
         return (f"  {e['name']:<26}{truth}{e['predicted']:<13}{e.get('source', 'head'):<6}"
                 f"{number(e.get('reflectivity')):>6}{number(e.get('readout')):>6}  {eps:<22}"
                 f"{e['observed_fraction']:>6.0%}")
 
-    head = f"  {'':<26}" + ("true         " if materials["objects"] else "")
+    head = f"  {'':<26}" + ("true         " if with_truth else "")
     lines = ["materials (the class nearest |Gamma| at normal incidence, from the data's closed-form readout where it "
              "reads a passive surface, else from the head; eps' [10-90 % of the head's surface]; observed share):",
              head + f"{'predicted':<13}{'from':<6}{'head':>6}{'data':>6}  {'eps_real':<22}{'seen':>6}"]
