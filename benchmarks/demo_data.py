@@ -7,7 +7,7 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import scene_reference
 from rfsdf.radar import Image, Measurements, load_radar, matched_filter, simulate
@@ -54,7 +54,7 @@ def demo_warm_start(data: DemoData, seed: int = 0) -> tuple[Trainer, ReconConfig
     by the scene's reference where it names one; ``seed`` the fit's, ``[train] seed``): the trainer
     after it (its ``field`` and range ``peaks``; its run folder gone) and the config."""
     scene, grid = data.scene, data.image.grid
-    config = with_scene_reference(ReconConfig.model_validate({"train": {"seed": seed}}), scene, data.settings)
+    config = with_calibration(ReconConfig.model_validate({"train": {"seed": seed}}), scene, data.settings)
     reference = (None if config.calibration.reference is None
                  else scene_reference(scene, config.calibration, data.measurements.acquisition))
     problem = Problem(data.measurements, grid, clean=clean_image(data.measurements, grid),

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from demo_data import demo_data
 
-from rfsdf.demo import QUICK, DemoSettings, with_scene_reference
+from rfsdf.demo import QUICK, DemoSettings, with_calibration
 from rfsdf.device import resolve_device
 from rfsdf.jsonio import to_json
 from rfsdf.material_estimates import scene_reference
@@ -76,7 +76,7 @@ def main() -> None:
         overrides = {**settings.recon, **overrides,
                      "train": {**settings.recon.get("train", {}), **overrides.get("train", {}), "seed": args.seed,
                                "device": str(device)}}
-        config = with_scene_reference(ReconConfig.model_validate(overrides), scene, settings)
+        config = with_calibration(ReconConfig.model_validate(overrides), scene, settings)
         reference = (None if config.calibration.reference is None
                          else scene_reference(scene, config.calibration, data.measurements.acquisition))
         problem = Problem(data.measurements, grid, clean=clean,

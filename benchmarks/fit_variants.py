@@ -30,7 +30,7 @@ import torch
 from demo_data import calibrated_problem, demo_data
 from seeds import _materials
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.device import resolve_device
 from rfsdf.jsonio import to_json
 from rfsdf.mesh import extract_mesh
@@ -103,7 +103,7 @@ def run_variants(variants: dict[str, dict], *, scene_name: str, seeds: list[int]
             overrides = dict(overrides)
             gain = overrides.pop("gain", None)
             train = {**settings.recon.get("train", {}), **overrides.get("train", {}), "seed": seed, "device": str(device)}
-            config = with_scene_reference(ReconConfig.model_validate({**settings.recon, **overrides, "train": train}),
+            config = with_calibration(ReconConfig.model_validate({**settings.recon, **overrides, "train": train}),
                                           scene, dataclasses.replace(settings, gain=gain))
             problem, reference = calibrated_problem(data, config, clean, gain=gain)
             with tempfile.TemporaryDirectory() as folder:

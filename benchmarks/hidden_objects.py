@@ -32,7 +32,7 @@ from pathlib import Path
 
 import torch
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.geometry import Grid
 from rfsdf.jsonio import to_json
 from rfsdf.material_estimates import scene_reference
@@ -114,7 +114,7 @@ def main() -> None:
     score = partial(evaluate_scene, scene=objects, samples=settings.metric_samples, seed=settings.seed,
                     observed=partial(observed_mask, acquisition=radar.acquisition(), occluder=objects.sdf))
     for case in cases:
-        config = with_scene_reference(ReconConfig.model_validate({"train": {"seed": args.seed}}), objects, settings)
+        config = with_calibration(ReconConfig.model_validate({"train": {"seed": args.seed}}), objects, settings)
         reference = scene_reference(objects, config.calibration, data[case].acquisition)
         known = reference.labels(tuple(config.field.materials))
         through = enclosure if case == "through" else None

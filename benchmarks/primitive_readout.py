@@ -30,7 +30,7 @@ from demo_data import calibrated_problem, demo_data
 from object_brightness import object_gains
 from seeds import _materials
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.jsonio import to_json
 from rfsdf.material_estimates import MIN_OBSERVED_FRACTION, _observed_objects
 from rfsdf.materials import class_reflectivities, reflectivity_class
@@ -52,7 +52,7 @@ def main() -> None:
     scene, acquisition = data.scene, data.measurements.acquisition
     clean = clean_image(data.measurements, data.image.grid, max_components=settings.clean_components)
     train = {**settings.recon.get("train", {}), "seed": args.seed}
-    config = with_scene_reference(ReconConfig.model_validate({**settings.recon, "train": train}), scene, settings)
+    config = with_calibration(ReconConfig.model_validate({**settings.recon, "train": train}), scene, settings)
     problem, reference = calibrated_problem(data, config, clean)
     with tempfile.TemporaryDirectory() as folder:
         trainer = Trainer(problem, config, folder)

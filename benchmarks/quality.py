@@ -7,7 +7,7 @@ Usage: python benchmarks/quality.py [--scene S] [--radar R] [--out benchmarks/re
        [--recon '{"train": {"geometry_delay": 0}}']   (reconstruction settings over the defaults)
        [--voxel-mm 4]   (image voxel edge; the default is the demo's)
        [--samples-per-wavelength 6] [--random-samples]   (the simulator's surface quadrature; stratified
-       is the default)  [--known-gain]   (give the fit the simulator's radar gain: absolute materials)
+       is the default)  [--known-gain]   (the simulator's radar gain given after the fit: absolute materials)
 """
 
 from __future__ import annotations
@@ -34,7 +34,9 @@ def main() -> None:
                         help="the simulator's surface samples per wavelength")
     parser.add_argument("--random-samples", action="store_true",
                         help="the simulator's earlier independent random samples instead of stratified ones")
-    parser.add_argument("--known-gain", action="store_true", help="the fit knows the simulator's radar gain")
+    parser.add_argument("--known-gain", action="store_true",
+                        help="read the materials in the simulator's radar gain, given after the relative fit "
+                             "(before 2026-12-06: held in the fit)")
     args = parser.parse_args()
     out = args.out or Path(f"benchmarks/results/quality-{Path(args.scene).stem}-{Path(args.radar).stem}.json")
 

@@ -25,16 +25,16 @@ from pathlib import Path
 import numpy as np
 from demo_data import demo_data
 
-from rfsdf.demo import DemoSettings, with_scene_reference
+from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import calibration_text, estimate_materials, read_materials, scene_reference
+from rfsdf.material_estimates import estimate_materials, fit_materials, known_gain, scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
 from rfsdf.radar.coverage import observed_mask
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import Problem, ReconConfig, Trainer
-from rfsdf.recon.calibration import check_reference
+from rfsdf.recon.calibration import check_reference, fitted_gain
 
 
 def _scores(metrics) -> dict[str, float]:
@@ -47,29 +47,26 @@ def _scores(metrics) -> dict[str, float]:
 
 
 def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict:
-    """The fit's material readout as the demo reports it: per object its true and predicted
-    class, what predicted it (the data's closed-form readout or the head), the head's
+    """The fit's material readout as the demo reports it (``fit_materials``): per object its true
+    and predicted class, what predicted it (the data's closed-form readout or the head), the head's
     reflectivity and the readout, the observed share, and the class accuracy over the objects
-    counted. A relative fit (no reference, no gain held) is also read in the simulator's gain,
-    given after the fit as a calibration capture's would be: each object's ``readout_known_gain``
-    and ``predicted_known_gain`` (the same rule), and their ``accuracy_known_gain``."""
+    counted. A relative fit (no reference, no known gain) is also read in the simulator's gain,
+    given after the fit as a calibration capture's would be (``calibration.gain``: every reading
+    times the fitted gain over it): each object's ``readout_known_gain`` and
+    ``predicted_known_gain`` (the same rule), and their ``accuracy_known_gain``."""
     calibration = None if reference is None else check_reference(trainer, reference)
-    stated = None if reference is None else (reference.name, reference.material)
-
-    def report(gain=None):
-        return estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
-                                  calibration=calibration_text(trainer.problem.gain, calibration),
-                                  reference=None if reference is None else reference.name,
-                                  readout=read_materials(trainer, mesh, scene=scene, reference=stated, gain=gain))
-
-    reported = report()
+    reported = fit_materials(trainer, mesh, scene=scene, calibration=calibration, seed=seed)
     row = {"accuracy": reported.accuracy, "calibration": reported.calibration,
            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "source": o.source,
                                 "reflectivity": o.reflectivity, "readout": o.readout,
                                 "observed_fraction": o.observed_fraction, "reference": o.reference}
                        for o in reported.objects}}
-    if reference is None and trainer.problem.gain is None:
-        known = report(SIMULATED_GAIN)
+    if reference is None and known_gain(trainer) is None:
+        scale = fitted_gain(trainer) / SIMULATED_GAIN
+        readout = tuple(np.array([np.nan if e.readout is None else e.readout * scale for e in part])
+                        for part in (reported.objects, reported.components))
+        known = estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
+                                   calibration="known", readout=readout, head_scale=scale)
         row["accuracy_known_gain"] = known.accuracy
         for o in known.objects:
             row["objects"][o.name].update(readout_known_gain=o.readout, predicted_known_gain=o.predicted)
@@ -109,7 +106,7 @@ def main() -> None:
     runs = []
     for seed in seeds:
         overrides = {**args.recon, "train": {**args.recon.get("train", {}), "seed": seed}}
-        config = with_scene_reference(ReconConfig.model_validate(overrides), scene, settings)
+        config = with_calibration(ReconConfig.model_validate(overrides), scene, settings)
         reference = (None if config.calibration.reference is None
                      else scene_reference(scene, config.calibration, data.measurements.acquisition))
         known = None if reference is None else reference.labels(tuple(config.field.materials))

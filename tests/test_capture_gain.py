@@ -47,8 +47,9 @@ def test_a_capture_of_a_metal_sphere_gives_the_gain_and_a_misplaced_one_is_refus
 
 
 def test_calibrate_then_reconstruct_with_the_gain_and_refuse_another_radars_data(tmp_path, tiny_radar, tiny_files):
-    """`rfsdf calibrate` writes the gain file; `reconstruct --gain` fits with that gain held
-    (in the checkpoint); data of another radar are one error line, and nothing is written."""
+    """`rfsdf calibrate` writes the gain file; `reconstruct --gain` fits relative (no gain held)
+    with that gain in its config, which `rfsdf materials` reads the materials in; data of another
+    radar are one error line, and nothing is written."""
     write_measurements(tmp_path / "capture.h5", _capture(tmp_path, tiny_radar))
     runner = CliRunner()
     result = runner.invoke(main, ["calibrate", str(tmp_path / "capture.h5"), "--scene", _sphere_scene(tmp_path),
@@ -63,7 +64,11 @@ def test_calibrate_then_reconstruct_with_the_gain_and_refuse_another_radars_data
     result = runner.invoke(main, ["reconstruct", str(tmp_path / "sphere-data.h5"), "--gain", str(tmp_path / "gain.json"),
                                   "--config", str(tiny_files / "tiny.toml"), "--out", str(tmp_path / "run")])
     assert result.exit_code == 0, result.output
-    assert read_checkpoint(tmp_path / "run" / CHECKPOINT_NAME, "cpu")["gain"] == gain
+    state = read_checkpoint(tmp_path / "run" / CHECKPOINT_NAME, "cpu")
+    assert state["gain"] is None and state["config"]["calibration"]["gain"] == gain
+    result = runner.invoke(main, ["materials", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    assert f"calibration: known radar gain {gain:g}, given after the relative fit (its own gain" in result.output
 
     result = runner.invoke(main, ["reconstruct", str(tiny_files / "data.h5"), "--gain", str(tmp_path / "gain.json"),
                                   "--config", str(tiny_files / "tiny.toml"), "--out", str(tmp_path / "other")])

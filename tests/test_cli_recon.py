@@ -38,7 +38,8 @@ def test_reconstruct_mesh_evaluate_and_resume(tmp_path, tiny_files):
 def test_materials_of_a_run_folder_read_the_data_as_the_fit_in_hand_does(tmp_path, tiny_files):
     """`rfsdf materials RUN` rebuilds the fit from its checkpoint (config, grid, field) and the
     measurements, and prints the closed-form readout that the same fit, still in hand, reads;
-    a checkpoint written before the grid was kept gets the head's readings and a line saying why."""
+    a checkpoint written before the grid was kept gets the head's readings and a line saying why
+    (and that a known gain given after the fit is not applied to them)."""
     runner = CliRunner()
     args = ["reconstruct", str(tmp_path / "data.h5"), "--image", str(tmp_path / "image.h5"),
             "--out", str(tmp_path / "run"), "--config", str(tmp_path / "tiny.toml")]
@@ -66,6 +67,10 @@ def test_materials_of_a_run_folder_read_the_data_as_the_fit_in_hand_does(tmp_pat
     assert table.exit_code == 0, table.output
     assert table.output.rstrip().endswith("(no closed-form readout: the run's checkpoint keeps no grid "
                                           "(written before rfsdf kept one))")
+    state["config"]["calibration"]["gain"] = 2.5  # a capture's gain, given after the relative fit
+    torch.save(state, tmp_path / "run" / CHECKPOINT_NAME)
+    table = runner.invoke(main, ["materials", str(tmp_path / "run")])
+    assert table.output.rstrip().endswith("; the head's reflectivities stay relative, not in the known gain 2.5)")
 
 
 def test_reconstruct_and_image_need_no_scene(tmp_path, tiny_files):

@@ -4,6 +4,7 @@ import math
 import re
 
 import numpy as np
+import pydantic
 import pytest
 import trimesh
 from click.testing import CliRunner
@@ -117,21 +118,27 @@ def test_demo_refuses_bad_scene_and_radar_names_in_one_line(tmp_path):
 
 def test_the_demo_calibrates_by_the_scenes_reference_unless_told_otherwise():
     """The default scene names its metal ball: the demo's config renders it as metal; not
-    with ``relative``, not over a reference already given, not without a material head."""
+    with ``relative``, not over a reference already given, not without a material head; with a
+    known gain the config carries it (given after the relative fit) and no reference; both in one
+    config are refused in one line."""
     import dataclasses
 
-    from rfsdf.demo import DemoSettings, with_scene_reference
+    from rfsdf.demo import DemoSettings, with_calibration
     from rfsdf.recon import ReconConfig
     from rfsdf.scene import load_scene
 
     scene, settings, config = load_scene("objects"), DemoSettings(), ReconConfig()
-    assert with_scene_reference(config, scene, settings).calibration.reference == "metal_ball=metal"
-    assert with_scene_reference(config, scene, dataclasses.replace(settings, relative=True)).calibration.reference is None
+    assert with_calibration(config, scene, settings).calibration.reference == "metal_ball=metal"
+    assert with_calibration(config, scene, dataclasses.replace(settings, relative=True)).calibration.reference is None
     given = ReconConfig.model_validate({"calibration": {"reference": "glass_jar=glass"}})
-    assert with_scene_reference(given, scene, settings).calibration.reference == "glass_jar=glass"
+    assert with_calibration(given, scene, settings).calibration.reference == "glass_jar=glass"
     headless = ReconConfig.model_validate({"field": {"materials": []}})
-    assert with_scene_reference(headless, scene, settings).calibration.reference is None
-    assert with_scene_reference(config, load_scene("sphere"), settings).calibration.reference is None
+    assert with_calibration(headless, scene, settings).calibration.reference is None
+    assert with_calibration(config, load_scene("sphere"), settings).calibration.reference is None
+    known = with_calibration(config, scene, dataclasses.replace(settings, gain=1.0)).calibration
+    assert (known.gain, known.reference) == (1.0, None)
+    with pytest.raises(pydantic.ValidationError, match="one calibration, not both"):
+        ReconConfig.model_validate({"calibration": {"reference": "glass_jar=glass", "gain": 1.0}})
 
 
 def test_a_folder_stamped_before_a_setting_existed_takes_its_default(tmp_path):

@@ -11,13 +11,15 @@ import trimesh
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
     MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, MaterialReport, class_accuracy, component_materials,
-    eps_of_reflectivity, materials_table, object_materials, read_materials, scene_reference, with_readout,
+    eps_of_reflectivity, fit_materials, materials_table, object_materials, read_materials, scene_reference,
+    with_readout,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
 from rfsdf.radar.simulate import SIMULATED_GAIN
 from rfsdf.recon import CoherentRenderer, Problem, ReconConfig, Trainer, amplitude_loss
 from rfsdf.recon.calibration import check_reference, fitted_gain
+from rfsdf.recon.config import CalibrationConfig
 from rfsdf.recon.losses import material_cross_entropy, material_entropy
 from rfsdf.recon.material_readout import primitive_union, read_brightness, read_surface, with_primitives
 from rfsdf.recon.object_primitives import FramedPrimitive
@@ -201,6 +203,26 @@ def test_the_report_reads_each_ball_in_closed_form_by_object_and_by_component(tw
     known, _ = read_materials(trainer, mesh, scene=scene, gain=SIMULATED_GAIN)  # the relative fit in the radar's gain
     np.testing.assert_allclose(known, relative * fitted_gain(trainer) / SIMULATED_GAIN, rtol=1e-5)
     assert known[0] == pytest.approx(1.0, rel=0.2), known
+
+
+def test_a_known_gain_given_after_the_fit_scales_the_head_and_the_readout_alike(two_balls_start, metal_referenced,
+                                                                               monkeypatch):
+    """``fit_materials`` with the config's ``calibration.gain`` (and no reference): every
+    reflectivity, the head's and the readout's, is the relative fit's times the fitted gain over the
+    known one, and the calibration line says the gain came after the fit."""
+    scene, *_ = two_balls_start
+    *_, trainer = metal_referenced
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=0.015).apply_translation([-0.025, 0.0, 0.0])
+    relative = fit_materials(trainer, mesh, scene=scene)
+    monkeypatch.setattr(trainer, "config", trainer.config.model_copy(
+        update={"calibration": CalibrationConfig(gain=SIMULATED_GAIN)}))
+    known = fit_materials(trainer, mesh, scene=scene)
+    scale = fitted_gain(trainer) / SIMULATED_GAIN
+    assert known.head_scale == pytest.approx(scale) and "given after the relative fit" in known.calibration
+    assert relative.head_scale == 1 and relative.calibration.startswith("relative")
+    for before, after in zip(relative.objects + relative.components, known.objects + known.components):
+        assert after.reflectivity == pytest.approx(before.reflectivity * scale, rel=1e-6)
+        assert after.readout == pytest.approx(before.readout * scale, rel=1e-4)
 
 
 def test_the_table_keeps_the_components_classes_under_the_predicted_column():

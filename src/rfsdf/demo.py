@@ -43,7 +43,7 @@ from .errors import RfsdfError
 from .geometry import Grid
 from .jsonio import to_json, write_json
 from .material_estimates import (
-    MaterialReport, calibration_text, estimate_materials, materials_table, paint_mesh, read_materials, scene_reference,
+    MaterialReport, fit_materials, materials_table, paint_mesh, scene_reference,
 )
 from .mesh import export_mesh, extract_mesh
 from .metrics import SceneMetrics, evaluate_scene, once_per_samples
@@ -84,10 +84,9 @@ class DemoSettings:
     surface: str = "facets"  # the simulator's surface: facets of the zero set (converged) or points
     stratified_samples: bool = True  # the simulator's points (surface "points") one per stratum of equal area
     recon: dict = field(default_factory=dict)  # ReconConfig overrides (nested tables)
-    # the radar gain held in the fit (absolute |Gamma|): SIMULATED_GAIN for this simulator's
-    # data, or a separate capture's (rfsdf calibrate); None fits one gain at each step (against
-    # the calibration_reference when the scene names one). With the simulator's gain held, the
-    # neural surface's dimmer glints made the head pick brighter classes (tests/test_material_fit.py)
+    # a known radar gain the materials are read in after the relative fit (absolute |Gamma|, the
+    # config's calibration.gain): SIMULATED_GAIN for this simulator's data, or a separate
+    # capture's (rfsdf calibrate); None: the scene's calibration_reference where it names one
     gain: float | None = None
     # leave out the scene's calibration_reference (one gain fitted per step, relative materials)
     relative: bool = False
@@ -252,18 +251,24 @@ def require_demo_images(inputs: SceneAndRadar, settings: DemoSettings) -> None:
                          "--model primitive, hybrid or all") from None
 
 
-def with_scene_reference(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
-    """``config`` calibrated by the scene's ``calibration_reference`` (rendered as its own
-    material), unless a reference is already set, the settings ask for relative materials,
-    or there is no material head, or the settings hold a known gain."""
+def with_calibration(config: ReconConfig, scene: Scene, settings: DemoSettings) -> ReconConfig:
+    """``config`` calibrated as the settings ask: in their known ``gain`` (given after the relative
+    fit), else by the scene's ``calibration_reference`` (rendered as its own material) unless
+    the settings ask for relative materials; as it is when it has a calibration already or no
+    material head."""
     name = scene.spec.calibration_reference
-    if (name is None or settings.relative or settings.gain is not None or config.calibration.reference is not None
-            or not config.field.materials):
+    calibration = config.calibration
+    if calibration.reference is not None or calibration.gain is not None or not config.field.materials:
         return config
-    material = next(o.material.name for o in scene.objects if o.name == name)
     merged = config.model_dump()
-    merged["calibration"]["reference"] = f"{name}={material}"
-    return validate(ReconConfig, merged, f"{settings.scene}: calibration_reference")
+    if settings.gain is not None:
+        merged["calibration"]["gain"] = settings.gain
+    elif name is not None and not settings.relative:
+        material = next(o.material.name for o in scene.objects if o.name == name)
+        merged["calibration"]["reference"] = f"{name}={material}"
+    else:
+        return config
+    return validate(ReconConfig, merged, f"{settings.scene}: calibration")
 
 
 def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
@@ -283,7 +288,7 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     inputs = load_scene_and_radar(settings.scene, settings.radar)
     scene, radar = inputs.scene, inputs.radar
     require_demo_images(inputs, settings)
-    config = with_scene_reference(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
+    config = with_calibration(validate(ReconConfig, settings.recon, "recon"), scene, settings).on_device(device)
     claim_folder(out, settings)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -333,7 +338,6 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
     if config.calibration.reference is not None:
         reference = scene_reference(scene, config.calibration, measurements.acquisition)
     problem = Problem(measurements, grid, str(out / "measurements.h5"), clean=clean, image=image,
-                      gain=settings.gain,
                       known_materials=None if reference is None else reference.labels(tuple(config.field.materials)))
     trainer = Trainer(problem, config, out / "run", progress=progress)
     fit = trainer.fit(resume=True)
@@ -343,26 +347,21 @@ def run_demo(out, settings: DemoSettings | None = None, *, device: str = "auto",
                     observed=once_per_samples(partial(observed_mask, acquisition=measurements.acquisition,
                                                       occluder=scene.sdf)))
     neural = extract_mesh(fit.field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
-    has_head = fit.field.material_head is not None  # its mesh carries each vertex's material
-    export_mesh(paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz) if has_head else neural,
-                out / "neural.ply")
     warm = extract_mesh(fit.warm_field.sdf, scene.lower_m, scene.upper_m, settings.mesh_resolution, device=device)
     export_mesh(warm, out / "neural-warm-start.ply")
     methods = {"neural": MethodResult("GeRaF (neural)", score(neural)),
                "neural_warm_start": MethodResult("its warm start", score(warm))}
     lap("mesh_and_evaluate_s")
     materials = None
-    if has_head:
+    if fit.field.material_head is not None:  # its mesh carries each vertex's material, as the table reads it
         calibration = None if reference is None else check_reference(trainer, reference)
         if calibration is not None and calibration.warning() is not None:
             log(f"warning: {calibration.warning()}")
-        cc = config.calibration
-        stated = None if reference is None else (cc.reference_object, cc.reference_material)
-        materials = estimate_materials(fit.field, neural, measurements.acquisition, scene=scene, seed=settings.seed,
-                                       calibration=calibration_text(problem.gain, calibration),
-                                       reference=cc.reference_object,
-                                       readout=read_materials(trainer, neural, scene=scene, reference=stated))
+        materials = fit_materials(trainer, neural, scene=scene, calibration=calibration, seed=settings.seed)
         lap("materials_s")
+    export_mesh(neural if materials is None else
+                paint_mesh(fit.field, neural, measurements.acquisition.center_frequency_hz, materials.head_scale),
+                out / "neural.ply")
 
     reference = scene.ground_truth_mesh()
     # the baselines: each image's best global threshold, and the warm start's detection without the fit

@@ -44,9 +44,9 @@ from .radar import Acquisition
 from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "READOUT_CEILING", "MaterialEstimate", "MaterialReport", "estimate_materials",
-           "object_materials", "component_materials", "read_materials", "with_readout", "class_accuracy",
-           "point_classes", "eps_of_reflectivity", "paint_mesh", "check_materials_dict", "calibration_text",
-           "scene_reference", "materials_table", "run_materials"]
+           "object_materials", "component_materials", "read_materials", "known_gain", "fit_materials", "with_readout",
+           "class_accuracy", "point_classes", "eps_of_reflectivity", "paint_mesh", "check_materials_dict",
+           "calibration_text", "scene_reference", "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 # no passive surface reflects more than 1; right surfaces' metal read 0.95-1.02, wrong ones up to 2.4
@@ -94,11 +94,12 @@ class MaterialReport:
     components: list[MaterialEstimate]
     accuracy: float | None
     calibration: str
+    head_scale: float = 1.0  # the head's reflectivities were multiplied by it (estimate_materials)
 
     def as_dict(self) -> dict:
         return {"objects": [o.as_dict() for o in self.objects], "components": [c.as_dict() for c in self.components],
                 "accuracy": self.accuracy, "min_observed_fraction": MIN_OBSERVED_FRACTION,
-                "calibration": self.calibration}
+                "calibration": self.calibration, "head_scale": self.head_scale}
 
 
 def _probabilities(field, points: torch.Tensor) -> torch.Tensor:
@@ -115,10 +116,11 @@ def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, quantiles) -> l
     return [float(values[order][min(np.searchsorted(cumulative, q), len(values) - 1)]) for q in quantiles]
 
 
-def point_classes(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float) -> np.ndarray:
+def point_classes(probabilities: torch.Tensor, classes: tuple[str, ...], frequency_hz: float,
+                  scale: float = 1.0) -> np.ndarray:
     """(Q,) int index into ``classes`` of the class nearest each point's reflectivity
-    (probabilities (Q, K)): the per-point readout of the tables."""
-    names = reflectivity_class(point_reflectivity(probabilities, classes, frequency_hz), classes, frequency_hz)
+    (probabilities (Q, K)) times ``scale``: the per-point readout of the tables."""
+    names = reflectivity_class(point_reflectivity(probabilities, classes, frequency_hz) * scale, classes, frequency_hz)
     return np.array([classes.index(n) for n in names], dtype=np.int32)
 
 
@@ -130,11 +132,12 @@ def eps_of_reflectivity(reflectivity) -> np.ndarray:
 
 
 def _estimate(name: str, probabilities: torch.Tensor, area_m2: torch.Tensor, classes: tuple[str, ...],
-              frequency_hz: float, observed_fraction: float, true=None) -> MaterialEstimate:
-    """The estimate of one surface from the probabilities (Q, K) at its samples (areas (Q,))."""
+              frequency_hz: float, observed_fraction: float, true=None, scale: float = 1.0) -> MaterialEstimate:
+    """The estimate of one surface from the probabilities (Q, K) at its samples (areas (Q,)),
+    its reflectivities times ``scale``."""
     weights = (area_m2.double() / area_m2.double().sum()).numpy()
     mean = (torch.as_tensor(weights)[:, None] * probabilities).sum(0)
-    per_point = point_reflectivity(probabilities, classes, frequency_hz)
+    per_point = point_reflectivity(probabilities, classes, frequency_hz) * scale
     reflectivity = float((weights * per_point).sum())
     interval = tuple(_weighted_quantiles(per_point, weights, _INTERVAL))
     predicted = str(reflectivity_class(reflectivity, classes, frequency_hz))
@@ -163,16 +166,17 @@ def _observed_objects(scene, acquisition: Acquisition, spacing_m: float, max_sam
 
 
 def object_materials(field, scene, acquisition: Acquisition, *, spacing_m: float = 0.002,
-                     max_samples: int = 40_000, seed: int = 0) -> list[MaterialEstimate]:
+                     max_samples: int = 40_000, seed: int = 0, scale: float = 1.0) -> list[MaterialEstimate]:
     """One estimate per object of ``scene``, from the field's head on the object's true
-    surface where some view of ``acquisition`` observes it (all of it when none does)."""
+    surface where some view of ``acquisition`` observes it (all of it when none does); the
+    head's reflectivities times ``scale`` (into the gain the materials are read in)."""
     samples, rows = _observed_objects(scene, acquisition, spacing_m, max_samples, seed)
     estimates = []
     for obj, (mine, seen, fraction) in zip(scene.objects, rows):
         area = samples.area_m2
         use = seen if bool(seen.any()) else mine
         estimates.append(_estimate(obj.name, _probabilities(field, samples.points[use]), area[use], field.materials,
-                                   acquisition.center_frequency_hz, fraction, obj.material))
+                                   acquisition.center_frequency_hz, fraction, obj.material, scale))
     return estimates
 
 
@@ -182,11 +186,12 @@ def _components(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
     return sorted((c for c in mesh.split(only_watertight=False) if c.area > 0), key=lambda m: -m.area)
 
 
-def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *,
-                        seed: int = 0) -> list[MaterialEstimate]:
+def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *, seed: int = 0,
+                        scale: float = 1.0) -> list[MaterialEstimate]:
     """One estimate per connected component of the reconstruction's mesh (largest first),
     from samples of its surface, the observed share by the views' facing and cones (no
-    shadows: tracing the neural field for every sample and view would cost more than the fit)."""
+    shadows: tracing the neural field for every sample and view would cost more than the fit);
+    the head's reflectivities times ``scale``."""
     estimates = []
     for index, component in enumerate(_components(mesh)):
         points, faces = trimesh.sample.sample_surface(component, _COMPONENT_SAMPLES, seed=seed + index)
@@ -197,7 +202,7 @@ def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, 
         use = seen if bool(seen.any()) else torch.ones(len(points), dtype=torch.bool)
         estimates.append(_estimate(f"component {index} ({component.area * 1e4:.1f} cm^2)",
                                    _probabilities(field, points[use]), area[use], field.materials,
-                                   acquisition.center_frequency_hz, float(seen.double().mean())))
+                                   acquisition.center_frequency_hz, float(seen.double().mean()), scale=scale))
     return estimates
 
 
@@ -207,16 +212,16 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tup
     finished :class:`~rfsdf.recon.Trainer`: per object of ``scene`` (O,) (told apart by the true
     objects) and per component of ``mesh`` (C,) (as :func:`component_materials` orders them), NaN
     where the data show nothing of it. Scaled by the ``reference`` (object name, stated material) as
-    the fit was calibrated, else by ``gain`` (the radar's [data units per renderer unit], known but
-    not held in the fit: a capture's, 1 for simulated data), else by the fit's known gain, else by
-    the gain the finished fit wants."""
+    the fit was calibrated, else by ``gain`` (the radar's [data units per renderer unit]: a capture's,
+    1 for simulated data), else by the fit's :func:`known_gain`, else by the gain the finished fit
+    wants."""
     from scipy.spatial import cKDTree
 
     from .recon.calibration import fitted_gain
     from .recon.material_readout import read_surface, with_primitives
 
     renderer, frequency_hz = trainer.renderer, trainer.problem.measurements.acquisition.center_frequency_hz
-    gain = trainer.problem.gain if gain is None else gain
+    gain = known_gain(trainer) if gain is None else gain
     if gain is None and reference is None:
         gain = fitted_gain(trainer)
     scale = {"gain": gain}
@@ -240,6 +245,31 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tup
     if read[0].scale is None:  # the reference renders nothing where the data are bright: nothing is absolute
         return np.full(len(objects), np.nan), np.full(len(parts), np.nan)
     return (read[0].reflectivity if objects else np.zeros(0)), read[-1].reflectivity
+
+
+def known_gain(trainer) -> float | None:
+    """The radar gain a finished fit's materials are read in, when one is known: the gain held in
+    its loss (``Problem.gain``), else its config's ``calibration.gain`` (given after the relative fit)."""
+    return trainer.problem.gain if trainer.problem.gain is not None else trainer.config.calibration.gain
+
+
+def fit_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, calibration=None, seed: int = 0) -> MaterialReport:
+    """The report of a finished :class:`~rfsdf.recon.Trainer` as the demo and ``rfsdf materials``
+    give it: :func:`estimate_materials` on ``mesh`` with the closed-form readout, both in one
+    calibration: the reference's (``calibration``, the fit's
+    :class:`~rfsdf.recon.calibration.Calibration`), else the gain held in the fit, else the config's
+    ``calibration.gain`` given after the relative fit (the head's reflectivities times the fitted
+    gain over it), else the gain the finished fit wants."""
+    from .recon.calibration import fitted_gain
+
+    stated = None if calibration is None else tuple(calibration.reference.partition("=")[::2])
+    held, given = trainer.problem.gain, trainer.config.calibration.gain
+    fitted = fitted_gain(trainer) if calibration is None and held is None and given is not None else None
+    text = calibration_text(held if fitted is None else given, calibration, fitted=fitted)
+    return estimate_materials(trainer.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
+                              calibration=text, reference=None if stated is None else stated[0],
+                              readout=read_materials(trainer, mesh, scene=scene, reference=stated),
+                              head_scale=1.0 if fitted is None else fitted / given)
 
 
 def with_readout(estimate: MaterialEstimate, value: float, classes: tuple[str, ...],
@@ -266,29 +296,31 @@ def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
 
 def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *, scene=None,
                        calibration: str, reference: str | None = None, seed: int = 0,
-                       readout: tuple[np.ndarray, np.ndarray] | None = None) -> MaterialReport:
+                       readout: tuple[np.ndarray, np.ndarray] | None = None, head_scale: float = 1.0) -> MaterialReport:
     """The full report: per object (with a scene; the object named ``reference`` marked as
     the calibration's), per component, with the ``readout`` of :func:`read_materials` when
-    given, the accuracy."""
-    objects = [] if scene is None else object_materials(field, scene, acquisition, seed=seed)
+    given, the accuracy. ``head_scale``: the factor that puts the head's reflectivities in the
+    readout's gain (a relative fit read in a known gain: the fitted gain over the known one)."""
+    objects = [] if scene is None else object_materials(field, scene, acquisition, seed=seed, scale=head_scale)
     objects = [replace(o, reference=o.name == reference) for o in objects]
-    components = component_materials(field, mesh, acquisition, seed=seed)
+    components = component_materials(field, mesh, acquisition, seed=seed, scale=head_scale)
     if readout is not None:
         read = partial(with_readout, classes=field.materials, frequency_hz=acquisition.center_frequency_hz)
         objects = [read(o, value) for o, value in zip(objects, readout[0])]
         components = [read(c, value) for c, value in zip(components, readout[1])]
-    return MaterialReport(objects, components, class_accuracy(objects), calibration)
+    return MaterialReport(objects, components, class_accuracy(objects), calibration, head_scale)
 
 
-def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float) -> trimesh.Trimesh:
+def paint_mesh(field, mesh: trimesh.Trimesh, frequency_hz: float, scale: float = 1.0) -> trimesh.Trimesh:
     """``mesh`` with per-vertex properties that PLY files keep: ``material_class`` (int32 index
     into ``field.materials``, in the run's config.toml: the class nearest the vertex's
-    reflectivity), ``reflectivity`` (float32, |Gamma| at normal incidence at ``frequency_hz``)
-    and ``eps_real`` (float32; NaN where metal is nearest)."""
+    reflectivity), ``reflectivity`` (float32, the head's |Gamma| at normal incidence at
+    ``frequency_hz`` times ``scale``, as :func:`estimate_materials`'s ``head_scale``) and
+    ``eps_real`` (float32; NaN where metal is nearest)."""
     classes = field.materials
     probabilities = _probabilities(field, torch.as_tensor(np.asarray(mesh.vertices)))
-    reflectivity = point_reflectivity(probabilities, classes, frequency_hz)
-    index = point_classes(probabilities, classes, frequency_hz)
+    reflectivity = point_reflectivity(probabilities, classes, frequency_hz) * scale
+    index = point_classes(probabilities, classes, frequency_hz, scale)
     pec = np.array([get_material(c).pec for c in classes])[index]
     painted = mesh.copy()
     painted.vertex_attributes.update(material_class=index, reflectivity=reflectivity.astype(np.float32),
@@ -341,14 +373,17 @@ def scene_reference(scene, calibration, acquisition: Acquisition, *, source: str
                      calibration.reference_distance_m)
 
 
-def calibration_text(gain: float | None, reference=None) -> str:
-    """How a fit's amplitudes were calibrated, in words, from its Problem.gain and, when a
-    reference object calibrated it, its :class:`~rfsdf.recon.calibration.Calibration`."""
+def calibration_text(gain: float | None, reference=None, *, fitted: float | None = None) -> str:
+    """How a fit's amplitudes were calibrated, in words: by a reference object (its
+    :class:`~rfsdf.recon.calibration.Calibration`), else by a known ``gain``, held in the fit or,
+    with the relative fit's own ``fitted`` gain, given after it; else relative."""
     if reference is not None:
         warning = reference.warning()
         return reference.text() + ("" if warning is None else f". WARNING: {warning}")
     if gain is None:
         return "relative: one gain fitted at each step, so only the ratios of the surfaces' |Gamma| are data"
+    if fitted is not None:
+        return f"known radar gain {gain:g}, given after the relative fit (its own gain {fitted:.3g})"
     return f"known radar gain {gain:g}"
 
 
@@ -382,10 +417,9 @@ def materials_table(materials: dict) -> str:
     return "\n".join(lines)
 
 
-def _run_readout(folder, state: dict, measurements, data_path, mesh: trimesh.Trimesh, scene,
-                 stated: tuple[str, str] | None) -> tuple[np.ndarray, np.ndarray] | str:
-    """:func:`read_materials` for a ``reconstruct`` run folder, its fit rebuilt from its checkpoint
-    (config, grid, field, primitives) and ``measurements``; or why it cannot be read, in words."""
+def _run_trainer(folder, state: dict, measurements, data_path, scene, stated: tuple[str, str] | None):
+    """The finished :class:`~rfsdf.recon.Trainer` of a ``reconstruct`` run folder, rebuilt from its
+    checkpoint (config, grid, field, primitives) and ``measurements``; or why it cannot be, in words."""
     from .errors import RfsdfError
     from .geometry import Grid
     from .recon import Problem, ReconConfig, Trainer
@@ -413,7 +447,7 @@ def _run_readout(folder, state: dict, measurements, data_path, mesh: trimesh.Tri
     config = validate(ReconConfig, state.get("config"), f"{folder / CHECKPOINT_NAME}: config").on_device("cpu")
     trainer = Trainer(problem, config, folder)
     trainer.load()
-    return read_materials(trainer, mesh, scene=scene, reference=stated)
+    return trainer
 
 
 def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> str:
@@ -455,19 +489,24 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
     mesh = (trimesh.load(mesh_path, force="mesh") if mesh_path.is_file()
             else extract_mesh(field.sdf, field.lower_m, field.upper_m, 96))
     scene = load_scene(scene_name) if scene_name is not None else None
-    calibration, stated = calibration_text(state.get("gain")), None
+    reference, stated = None, None  # the reference's calibration of the fit, and (its object, its material)
     if (folder / CALIBRATION_NAME).is_file():
         try:
             held = json.loads(input_file(folder / CALIBRATION_NAME).read_text())
-            calibration = Calibration(held["reference"], float(held["gain"]),
-                                      None if held["ratio"] is None else float(held["ratio"]))
-            name, _, material = calibration.reference.partition("=")
+            reference = Calibration(held["reference"], float(held["gain"]),
+                                    None if held["ratio"] is None else float(held["ratio"]))
+            name, _, material = reference.reference.partition("=")
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise RfsdfError(f"{folder / CALIBRATION_NAME}: not a calibration rfsdf wrote ({exc})") from None
-        calibration, stated = calibration_text(None, calibration), (name, material)
-    readout = _run_readout(folder, state, measurements, data_path, mesh, scene, stated)
-    report = estimate_materials(field, mesh, measurements.acquisition, scene=scene, calibration=calibration,
-                                reference=None if stated is None else stated[0],
-                                readout=None if isinstance(readout, str) else readout)
-    table = materials_table(report.as_dict())
-    return table + (f"\n  (no closed-form readout: {readout})" if isinstance(readout, str) else "")
+        stated = (name, material)
+    trainer = _run_trainer(folder, state, measurements, data_path, scene, stated)
+    if not isinstance(trainer, str):
+        return materials_table(fit_materials(trainer, mesh, scene=scene, calibration=reference).as_dict())
+    report = estimate_materials(field, mesh, measurements.acquisition, scene=scene, reference=stated and stated[0],
+                                calibration=calibration_text(state.get("gain"), reference))
+    try:
+        given = state["config"]["calibration"]["gain"]  # a known gain given after the relative fit
+    except (KeyError, TypeError):
+        given = None
+    unscaled = "" if given is None else f"; the head's reflectivities stay relative, not in the known gain {given}"
+    return materials_table(report.as_dict()) + f"\n  (no closed-form readout: {trainer}{unscaled})"

@@ -32,8 +32,9 @@ from .app import (
               help="Calibrate the gain with object NAME of --scene, known to be MATERIAL (overrides the config's "
                    "calibration.reference).")
 @click.option("--gain", "gain_path", type=click.Path(path_type=Path), default=None,
-              help="A gain file from `rfsdf calibrate` (a capture of a known target by the same radar): the "
-                   "materials are then absolute, with no reference in the scene.")
+              help="A gain file from `rfsdf calibrate` (a capture of a known target by the same radar): the fit "
+                   "stays relative and `rfsdf materials OUT` reads the materials in this gain (absolute |Gamma|), "
+                   "with no reference in the scene (config: calibration.gain).")
 @click.option("--scene", "scene_name", default=None,
               help="Scene file or preset that places the calibration reference (only that object is used); with "
                    "--model primitive, the true scene, to report each free parameter's truth.")
@@ -144,7 +145,6 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         from ..scene import load_scene
 
         through = load_scene(through_name)
-    gain = None
     if gain_path is not None:
         from ..radar.capture_gain import read_capture_gain
 
@@ -153,7 +153,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
                                    "calibrates the gain itself)")
         measured = read_capture_gain(gain_path)
         measured.require_radar(measurements.acquisition, f"{gain_path} for {data}")
-        gain = measured.gain
+        config = config.model_copy(update={"calibration": config.calibration.model_copy(update={"gain": measured.gain})})
     calibrator = None
     if config.calibration.reference is not None:
         if scene_name is None:
@@ -173,7 +173,7 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
         lower, upper = image_box(data, measurements, bounds, None)
         grid = Grid.from_voxel(lower, upper, voxel_size(voxel_m, lower, upper, voxels_per_edge=50))
     known = None if calibrator is None else calibrator.labels(tuple(config.field.materials))
-    trainer = Trainer(Problem(measurements, grid, str(data), gain=gain, known_materials=known, through=through),
+    trainer = Trainer(Problem(measurements, grid, str(data), known_materials=known, through=through),
                       config, out, progress=True)
     fit = trainer.fit(resume=resume)
     mesh = extract_mesh(fit.field.sdf, grid.lower_m, grid.upper_m, config.train.mesh_resolution, device=trainer.device)

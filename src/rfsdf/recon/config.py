@@ -328,6 +328,12 @@ class CalibrationConfig(StrictModel):
     reference: str | None = None
     # how near the reference's surface [m] a surface sample counts as the reference
     reference_distance_m: PositiveFloat = 0.01
+    # a known radar gain [data units per renderer unit] (a calibration capture's, `rfsdf
+    # calibrate`; 1 for rfsdf's simulated data). The fit stays relative (one gain fitted at each
+    # step) and its materials are read in this gain after it: the head's reflectivities and the
+    # closed-form readout times the fitted gain over this one. Held in the loss instead, the head
+    # learned only the scene's mean level (docs/results/materials.md). None: no known gain.
+    gain: PositiveFloat | None = None
 
     @field_validator("reference")
     @classmethod
@@ -340,6 +346,12 @@ class CalibrationConfig(StrictModel):
         if not sep or not name.strip() or not material.strip():
             raise ValueError(f"expected NAME=MATERIAL (an object of the scene and its material), got {text!r}")
         return f"{name.strip()}={get_material(material.strip()).name}"
+
+    @model_validator(mode="after")
+    def _one_calibration(self) -> CalibrationConfig:
+        if self.reference is not None and self.gain is not None:
+            raise ValueError("reference and gain: one calibration, not both (a reference calibrates the gain itself)")
+        return self
 
     @property
     def reference_object(self) -> str | None:
