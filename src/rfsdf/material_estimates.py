@@ -338,6 +338,7 @@ class _ReportFields(pydantic.BaseModel):
     accuracy: float | None
     min_observed_fraction: float
     calibration: str
+    head_scale: pydantic.PositiveFloat = 1.0  # absent in files written before it
 
 
 def check_materials_dict(materials, source: str) -> dict:

@@ -250,7 +250,8 @@ def _demo_sections(folder: Path, settings: dict, result: dict) -> tuple[str, lis
                      f"true surface and the radar's {acquisition.num_views} views (Tx red, Rx blue)"),
     ]
     if materials is not None:
-        classes = partial(_face_classes, field, frequency_hz=acquisition.center_frequency_hz)
+        classes = partial(_face_classes, field, frequency_hz=acquisition.center_frequency_hz,
+                          scale=materials.get("head_scale", 1.0))  # in the table's gain
         views.insert(1, material_figure(_load_mesh(folder / "neural.ply"), classes, field.materials,
                                         "GeRaF reconstruction, coloured by the class nearest its fitted |Gamma|"))
     sections = [
@@ -296,14 +297,14 @@ def _lengths_mm(values) -> str:
     return "-" if values is None else ", ".join(f"{v * 1e3:.1f}" for v in values)
 
 
-def _face_classes(field, centres: np.ndarray, *, frequency_hz: float) -> np.ndarray:
+def _face_classes(field, centres: np.ndarray, *, frequency_hz: float, scale: float = 1.0) -> np.ndarray:
     """(F,) at face centres (F, 3) [m], the index of the class nearest the reflectivity the
-    material head gives there (the materials table's readout)."""
+    material head gives there times ``scale`` (the materials table's ``head_scale``)."""
     import torch
 
     with torch.no_grad():
         probabilities = field.material(torch.tensor(np.asarray(centres), dtype=torch.float32))
-    return point_classes(probabilities, field.materials, frequency_hz)
+    return point_classes(probabilities, field.materials, frequency_hz, scale)
 
 
 def _run_sections(folder: Path) -> tuple[str, list[Section]]:

@@ -153,7 +153,8 @@ def reconstruct_cmd(data: Path, out: Path, image_path: Path | None, bounds: str 
                                    "calibrates the gain itself)")
         measured = read_capture_gain(gain_path)
         measured.require_radar(measurements.acquisition, f"{gain_path} for {data}")
-        config = config.model_copy(update={"calibration": config.calibration.model_copy(update={"gain": measured.gain})})
+        given = config.calibration.model_copy(update={"gain": measured.gain})  # applied after the relative fit
+        config = config.model_copy(update={"calibration": given})
     calibrator = None
     if config.calibration.reference is not None:
         if scene_name is None:

@@ -84,11 +84,11 @@ def read_brightness(renderer, labelings: list[tuple[torch.Tensor, int]], *, gain
             distinct.append(mask)
         which.append(j)
     rendered = renderer.segment_images(_Unit, views, index, torch.stack(distinct))  # (S, V, X)
-    images = iter([rendered[j] for j in which])
+    images = [rendered[j] for j in which]  # one a mask, the labelings' segments one after another
     observed = renderer.observed[:, index].abs()  # the data's peak voxel is bright: X >= 1
-    readouts = []
+    readouts, start = [], 0
     for _, count in labelings:
-        mine = [next(images) for _ in range(count)]
+        mine, start = images[start:start + count], start + count
         lit = np.array([bool(image.abs().max() > 0) for image in mine])
         readouts.append(np.where(lit, split_powers(mine, observed), np.nan))
     scale = None
