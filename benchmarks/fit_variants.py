@@ -8,8 +8,9 @@ whole-surface Chamfer-L1 with each object's (and its part of the observed one), 
 warm start's observed error the fit removes, and with a material head the demo's material readout
 (the head's and the closed-form readout's, ``rfsdf.material_estimates.read_materials``; a
 relative fit's also in the simulator's gain given after the fit, ``readout_known_gain``).
-A variant's ``"gain"`` (beside its ReconConfig tables) holds that radar gain in the fit, as a
-calibration capture gives it (1.0 for simulated data), instead of fitting one at each step.
+A variant's ``"gain"`` (beside its ReconConfig tables) holds that radar gain in the loss (1.0 for
+simulated data) instead of fitting one at each step; a capture's gain as ``reconstruct --gain``
+gives it, after the relative fit, is the table ``{"calibration": {"gain": 1.0}}``.
 
 Usage: python benchmarks/fit_variants.py --variants '{"name": {recon overrides}, ...}'
        [--scene objects] [--seeds 0,1,2] [--device cpu] [--out benchmarks/results/fit-variants-SCENE.json]
