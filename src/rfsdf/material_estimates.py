@@ -176,7 +176,7 @@ def object_materials(field, scene, acquisition: Acquisition, *, spacing_m: float
         area = samples.area_m2
         use = seen if bool(seen.any()) else mine
         estimates.append(_estimate(obj.name, _probabilities(field, samples.points[use]), area[use], field.materials,
-                                   acquisition.center_frequency_hz, fraction, obj.material, scale))
+                                   acquisition.center_frequency_hz, fraction, obj.material, scale=scale))
     return estimates
 
 
@@ -262,7 +262,7 @@ def fit_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, calibration=Non
     gain over it), else the gain the finished fit wants."""
     from .recon.calibration import fitted_gain
 
-    stated = None if calibration is None else tuple(calibration.reference.partition("=")[::2])
+    stated = None if calibration is None else calibration.stated
     held, given = trainer.problem.gain, trainer.config.calibration.gain
     fitted = fitted_gain(trainer) if calibration is None and held is None and given is not None else None
     text = calibration_text(held if fitted is None else given, calibration, fitted=fitted)
@@ -496,10 +496,9 @@ def run_materials(folder, *, data_path=None, scene_name: str | None = None) -> s
             held = json.loads(input_file(folder / CALIBRATION_NAME).read_text())
             reference = Calibration(held["reference"], float(held["gain"]),
                                     None if held["ratio"] is None else float(held["ratio"]))
-            name, _, material = reference.reference.partition("=")
+            stated = reference.stated
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise RfsdfError(f"{folder / CALIBRATION_NAME}: not a calibration rfsdf wrote ({exc})") from None
-        stated = (name, material)
     trainer = _run_trainer(folder, state, measurements, data_path, scene, stated)
     if not isinstance(trainer, str):
         return materials_table(fit_materials(trainer, mesh, scene=scene, calibration=reference).as_dict())

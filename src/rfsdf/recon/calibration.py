@@ -87,6 +87,12 @@ class Calibration:
     gain: float
     ratio: float | None
 
+    @property
+    def stated(self) -> tuple[str, str]:
+        """(the reference's object name, its stated material), from ``reference``."""
+        name, _, material = self.reference.partition("=")
+        return name, material
+
     def text(self) -> str:
         """One line for the materials table."""
         agreement = ("nothing else in the image to check it against" if self.ratio is None else
