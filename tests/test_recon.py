@@ -25,6 +25,7 @@ from rfsdf.recon import (
 )
 from rfsdf.recon.losses import DATA_LOSSES, complex_loss, split_spectrum_loss
 from rfsdf.recon.checkpoint import CHECKPOINT_NAME
+from rfsdf.recon.config import CalibrationConfig
 from rfsdf.recon.warm_start import detection_target, excluded_voxels, fit_to_image
 from rfsdf.scene import Scene, load_scene
 from rfsdf.scene_spec import SceneSpec
@@ -906,11 +907,14 @@ def test_the_primitives_that_replaced_their_fragments_resume_with_the_run(sphere
 
 def test_a_run_resumes_on_another_device_but_not_with_other_settings(sphere_data, tmp_path):
     """The device says where a fit runs, not what it fits: a run started under one
-    train.device goes on under another; any other setting refuses."""
+    train.device goes on under another, as under another known gain given after the fit
+    (calibration.gain, which only the materials' reading uses); any other setting refuses."""
     _, data = sphere_data
     problem = Problem(data, _grid(10), "data.h5")
     Trainer(problem, _config(steps=6, device="auto"), tmp_path / "run").fit()
     assert len(Trainer(problem, _config(steps=6, device="cpu"), tmp_path / "run").fit(resume=True).log) == 6
+    given = _config(steps=6).model_copy(update={"calibration": CalibrationConfig(gain=2.5)})
+    assert len(Trainer(problem, given, tmp_path / "run").fit(resume=True).log) == 6
     with pytest.raises(RfsdfError, match="made with another config"):
         Trainer(problem, _config(steps=6, lr=2e-3), tmp_path / "run").fit(resume=True)
 

@@ -145,8 +145,12 @@ def initial_field(grid: Grid, config: ReconConfig, device) -> RadarField:
 
 def _resumable(config: dict) -> dict:
     """What a checkpoint must share with the config that resumes it: all but the device (a
-    fit started on a GPU may go on on a CPU)."""
-    return {**config, "train": {k: v for k, v in config["train"].items() if k != "device"}}
+    fit started on a GPU may go on on a CPU) and a known gain given after the fit
+    (``calibration.gain``: the materials are read in it, the fit never sees it)."""
+    def without(table: str, key: str) -> dict:
+        return {k: v for k, v in config.get(table, {}).items() if k != key}
+
+    return {**config, "train": without("train", "device"), "calibration": without("calibration", "gain")}
 
 
 class Trainer:
