@@ -27,7 +27,7 @@ from demo_data import demo_data
 
 from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import estimate_materials, fit_materials, known_gain, scene_reference
+from rfsdf.material_estimates import Reading, estimate_materials, fit_materials, known_gain, scene_reference
 from rfsdf.mesh import extract_mesh
 from rfsdf.metrics import evaluate_scene
 from rfsdf.radar.clean import clean_image
@@ -63,7 +63,8 @@ def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict
                        for o in reported.objects}}
     if reference is None and known_gain(trainer) is None:
         scale = fitted_gain(trainer) / SIMULATED_GAIN
-        readout = tuple(np.array([np.nan if e.readout is None else e.readout * scale for e in part])
+        readout = tuple(Reading(*(np.array([np.nan if v is None else v * scale for v in values])
+                                  for values in ([e.readout for e in part], [e.readout_spread for e in part])))
                         for part in (reported.objects, reported.components))
         known = estimate_materials(fit.field, mesh, trainer.problem.measurements.acquisition, scene=scene, seed=seed,
                                    calibration="known", readout=readout, head_scale=scale)

@@ -47,7 +47,7 @@ def test_materials_of_a_run_folder_read_the_data_as_the_fit_in_hand_does(tmp_pat
     trainer = Trainer(Problem(read_measurements(tmp_path / "data.h5"), read_image(tmp_path / "image.h5").grid,
                               str(tmp_path / "data.h5")), load_recon_config(tmp_path / "tiny.toml"), tmp_path / "run")
     fit = trainer.fit(resume=True)
-    in_hand = read_materials(trainer, trimesh.load(tmp_path / "run" / "mesh.ply", force="mesh"))[1]
+    in_hand = read_materials(trainer, trimesh.load(tmp_path / "run" / "mesh.ply", force="mesh"))[1].value
     assert fit.field.material_head is not None and len(in_hand) >= 1
     table = runner.invoke(main, ["materials", str(tmp_path / "run")])
     assert table.exit_code == 0, table.output

@@ -11,8 +11,8 @@ import trimesh
 from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
     MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, MaterialReport, class_accuracy, component_materials,
-    eps_of_reflectivity, fit_materials, materials_table, object_materials, read_materials, scene_reference,
-    with_readout,
+    eps_of_reflectivity, fit_materials, materials_table, object_materials, read_materials, readout_classes,
+    scene_reference, with_readout,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
@@ -184,7 +184,8 @@ def test_the_report_reads_each_ball_in_closed_form_by_object_and_by_component(tw
     """``read_materials`` on the metal-referenced fit: the reference reads its stated |Gamma| (1)
     and the wooden ball wood's 0.171 within a factor 1.5 (measured 0.190); a mesh of the two balls
     (the true surfaces as two components) reads the same per component as per object within 2 %
-    (in either order: their areas are equal). Relative (no reference, no known gain), scaled by
+    (in either order: their areas are equal), the reference with no spread over the views and the
+    wooden ball with one. Relative (no reference, no known gain), scaled by
     the gain the finished fit wants: the metal ball within 10 % of 1 (measured 0.966), the ratio
     of the two as with the reference; in the simulator's gain, given after the fit, the relative
     readings times the fitted gain, the metal ball within 20 % of 1 (measured 1.15: a unit
@@ -193,14 +194,18 @@ def test_the_report_reads_each_ball_in_closed_form_by_object_and_by_component(tw
     *_, trainer = metal_referenced
     mesh = trimesh.util.concatenate([trimesh.creation.icosphere(subdivisions=3, radius=0.015)
                                      .apply_translation([x, 0.0, 0.0]) for x in (-0.025, 0.025)])
-    objects, components = read_materials(trainer, mesh, scene=scene, reference=("metal_ball", "metal"))
+    (objects, spread), (components, _) = read_materials(trainer, mesh, scene=scene, reference=("metal_ball", "metal"))
     wood = float(class_reflectivities(("wood",), data.acquisition.center_frequency_hz)[0])
     assert objects[0] == pytest.approx(1.0) and wood / 1.5 < objects[1] < wood * 1.5, objects
+    # the reference reads 1 in every split with a view left out: no spread of its own; the wooden
+    # ball's (measured 0.13) is that of six views of a 4 cm array, each a glint of its own
+    assert spread[0] == pytest.approx(0.0, abs=1e-9) and 0.01 < spread[1] < 0.3, spread
     np.testing.assert_allclose(np.sort(components), np.sort(objects), rtol=0.02)
-    relative, _ = read_materials(trainer, mesh, scene=scene)
+    (relative, _), _ = read_materials(trainer, mesh, scene=scene)
     assert relative[0] == pytest.approx(1.0, rel=0.1), relative
     assert relative[1] / relative[0] == pytest.approx(objects[1], rel=0.02)
-    known, _ = read_materials(trainer, mesh, scene=scene, gain=SIMULATED_GAIN)  # the relative fit in the radar's gain
+    # the relative fit in the radar's gain
+    (known, _), _ = read_materials(trainer, mesh, scene=scene, gain=SIMULATED_GAIN)
     np.testing.assert_allclose(known, relative * fitted_gain(trainer) / SIMULATED_GAIN, rtol=1e-5)
     assert known[0] == pytest.approx(1.0, rel=0.2), known
 
@@ -235,6 +240,23 @@ def test_the_table_keeps_the_components_classes_under_the_predicted_column():
     assert table[2][column:].startswith("wood ") and table[3][column:].startswith("glass "), table
     alone = materials_table(MaterialReport([], [part], None, "relative").as_dict()).splitlines()
     assert alone[2][alone[1].index("predicted"):].startswith("glass "), alone
+
+
+def test_the_table_gives_the_readout_s_interval_and_the_classes_it_cannot_tell_apart():
+    """A row read from the data shows its interval's half width (2 spreads) and, where that reaches
+    another class, "or" it; the accuracy line counts the objects the interval tells from every other
+    class."""
+    ball = MaterialEstimate("ball", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19), "wood")
+    told = dataclasses.replace(ball, name="told", readout=0.17, source="data", readout_spread=0.01,
+                               readout_classes=["wood"])
+    undecided = dataclasses.replace(told, name="undecided", predicted="plasterboard", readout=0.22,
+                                    readout_classes=["plasterboard", "wood"])
+    table = materials_table(MaterialReport([told, undecided, ball], [], 2 / 3, "known radar gain 1").as_dict())
+    lines = table.splitlines()
+    column = lines[1].index("+-")  # right-aligned under it
+    assert [line[column - 2:column + 2] for line in lines[2:5]] == ["0.02", "0.02", "   -"], table
+    assert lines[3].endswith("or wood") and "or " not in lines[2] and lines[4].split()[-1] == "50%", table
+    assert "(1 of 3 told from every other class by the readout's interval)" in lines[-1], table
 
 
 def test_a_readout_of_a_passive_surface_names_the_class_and_any_other_leaves_the_head_s():
@@ -306,6 +328,78 @@ def test_the_closed_form_readout_reads_each_ball_on_the_true_surface(tiny_radar)
     for image, mine in zip(together, segments):
         torch.testing.assert_close(image, renderer(ones, views, voxels, geometry=False, only=mine))
     assert together[2].abs().max() == 0 and together[1].abs().max() > 0
+
+
+class _SegmentRenderer:
+    """A renderer of S segments (candidate i is segment i) whose unit images are ``parts`` (S, V, N)
+    complex: what ``read_brightness`` asks of a CoherentRenderer, with the data ``observed`` (V, N)."""
+
+    device = torch.device("cpu")
+
+    def __init__(self, parts: torch.Tensor, observed: torch.Tensor):
+        self.parts, self.num_views = parts, parts.shape[1]
+        self.observed_peak = float(observed.abs().max())
+        self.observed = observed / self.observed_peak
+
+    def segment_images(self, unit, views, index, masks):
+        return torch.stack([self.parts[mask].sum(0)[views][:, index] for mask in masks])
+
+
+def test_the_readout_s_spread_is_the_jackknife_over_views_and_none_where_every_view_agrees():
+    """Two segments seen by five views, the data's powers sum_i a_iv^2 |p_i|^2 exactly: where each
+    segment's a is the same in every view, every view left out reads the same (spread 0); where the
+    second's grows from view to view (0.3, 0.35, ... 0.5), the spread is the jackknife's
+    sqrt((V-1)/V sum_v (x_v - mean)^2) over the leave-one-out least-squares splits (here
+    unconstrained: every a > 0), computed by numpy, of the brightness and, with the first segment
+    the reference (|Gamma| 1), of the ratio. One view: no spread."""
+    generator = torch.Generator().manual_seed(0)
+    parts = torch.randn(2, 5, 400, dtype=torch.complex128, generator=generator)
+    labels = torch.arange(2)
+
+    def observed(second):  # (V, N) amplitudes of the data, segment 0 at 1, segment 1 at ``second`` (V,)
+        return (parts[0].abs() ** 2 + (second[:, None] * parts[1].abs()) ** 2).sqrt().to(torch.complex128)
+
+    steady = read_brightness(_SegmentRenderer(parts, observed(torch.full((5,), 0.4, dtype=torch.float64))),
+                             [(labels, 2)], gain=1.0)[0]
+    np.testing.assert_allclose(steady.brightness * steady.scale, [1.0, 0.4], rtol=1e-9)
+    np.testing.assert_allclose(steady.spread, 0.0, atol=1e-9)
+
+    second = torch.linspace(0.3, 0.5, 5, dtype=torch.float64)
+    renderer = _SegmentRenderer(parts, observed(second))
+    gained, referenced = (read_brightness(renderer, [(labels, 2)], **scale)[0]
+                          for scale in ({"gain": 1.0}, {"reference": (0, 1.0)}))
+    design = (parts.abs() ** 2).numpy()  # (S, V, N)
+    target = (renderer.observed.abs() ** 2).numpy() * renderer.observed_peak ** 2
+    left_out = np.array([np.sqrt(np.linalg.lstsq(np.delete(design, v, 1).reshape(2, -1).T,
+                                                 np.delete(target, v, 0).ravel(), rcond=None)[0]) for v in range(5)])
+
+    def jackknife(x):
+        return np.sqrt(4 / 5 * ((x - x.mean(0)) ** 2).sum(0))
+
+    np.testing.assert_allclose(gained.spread, jackknife(left_out), rtol=1e-6)
+    np.testing.assert_allclose(referenced.spread, jackknife(left_out / left_out[:, :1]), rtol=1e-6, atol=1e-12)
+    assert referenced.spread[0] == pytest.approx(0.0, abs=1e-12) and gained.spread[1] > 0.01
+    alone = read_brightness(_SegmentRenderer(parts[:, :1], observed(second)[:1]), [(labels, 2)], gain=1.0)[0]
+    assert np.isnan(alone.spread).all() and np.isfinite(alone.brightness).all()
+
+
+def test_a_readout_names_every_class_its_interval_reaches():
+    """``readout_classes``: the classes nearest some |Gamma| within the reading +- 2 spreads. Wood
+    0.171 and plasterboard 0.246 at 79 GHz meet at their mean, 0.209: 0.22 +- 2 x 0.01 reaches both,
+    0.23 +- 2 x 0.01 plasterboard alone; wood +- 0.4 reaches glass (0.431), and plasterboard, whose
+    whole range lies between, is named too. ``with_readout`` keeps the list and the spread beside
+    the reading; without a spread there is no interval and no list."""
+    classes = ("metal", "glass", "plasterboard", "wood")
+    wood, plasterboard = (float(v) for v in class_reflectivities(("wood", "plasterboard"), 79e9))
+    middle = (wood + plasterboard) / 2
+    assert readout_classes(middle + 0.01, 0.01, classes, 79e9) == ["plasterboard", "wood"]
+    assert readout_classes(middle + 0.03, 0.01, classes, 79e9) == ["plasterboard"]
+    assert readout_classes(wood, 0.2, classes, 79e9) == ["glass", "plasterboard", "wood"]
+    head = MaterialEstimate("box", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19))
+    read = with_readout(head, middle + 0.01, classes, 79e9, spread=0.01)
+    assert (read.predicted, read.readout_spread) == ("plasterboard", 0.01)
+    assert read.readout_classes == ["plasterboard", "wood"]
+    assert with_readout(head, middle + 0.01, classes, 79e9).readout_classes is None  # no spread: no interval
 
 
 def test_the_surface_read_is_the_primitives_near_them_and_the_network_elsewhere():

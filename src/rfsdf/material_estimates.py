@@ -26,12 +26,17 @@ surface's value (0 < |Gamma| <= ``READOUT_CEILING``) the class is the readout's 
 right, where the head read 5 of 11 (docs/results/materials.md); a relative fit's gain, which a
 surface the fit lacks biases, biases both alike. A reading above the ceiling says the surface
 under it is wrong, and none says the data show nothing of it: the head's class stands there.
+Each reading carries its ``readout_spread``, the jackknife's standard error over the views
+(:mod:`~rfsdf.recon.material_readout`), and the ``readout_classes`` whose |Gamma| range
+its interval, the reading +- ``READOUT_SIGMAS`` spreads, reaches: more than one, and the data
+cannot tell those classes apart (the nearest is still ``predicted``, and counted).
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 import pydantic
@@ -43,15 +48,17 @@ from .materials import class_reflectivities, get_material, point_reflectivity, r
 from .radar import Acquisition
 from .radar.coverage import observed_mask
 
-__all__ = ["MIN_OBSERVED_FRACTION", "READOUT_CEILING", "MaterialEstimate", "MaterialReport", "estimate_materials",
-           "object_materials", "component_materials", "read_materials", "known_gain", "fit_materials", "with_readout",
-           "class_accuracy", "point_classes", "eps_of_reflectivity", "paint_mesh", "check_materials_dict",
-           "calibration_text", "scene_reference", "materials_table", "run_materials"]
+__all__ = ["MIN_OBSERVED_FRACTION", "READOUT_CEILING", "READOUT_SIGMAS", "MaterialEstimate", "MaterialReport",
+           "Reading", "estimate_materials", "object_materials", "component_materials", "read_materials", "known_gain",
+           "fit_materials", "with_readout", "readout_classes", "class_accuracy", "point_classes",
+           "eps_of_reflectivity", "paint_mesh", "check_materials_dict", "calibration_text", "scene_reference",
+           "materials_table", "run_materials"]
 
 MIN_OBSERVED_FRACTION = 0.15  # observed share of an object's surface for it to count in the accuracy
 # no passive surface reflects more than 1; right surfaces' metal read 0.95-1.02, wrong ones up to 2.4
 # (garage's bored box), docs/results/materials.md
 READOUT_CEILING = 1.1
+READOUT_SIGMAS = 2.0  # a readout's interval: the reading +- this many jackknife spreads over views
 _CHUNK = 1 << 15
 _INTERVAL = (0.1, 0.9)  # the percentiles of per-point reflectivity that make the intervals
 _COMPONENT_SAMPLES = 4000  # surface samples per connected component of the reconstruction
@@ -65,7 +72,8 @@ class MaterialEstimate:
     ``reflectivity_interval``, the ``predicted`` class (nearest in |Gamma|), ``eps_real``
     (None when metal is predicted) and its ``eps_real_interval``, ``observed_fraction`` of its
     area, and for a scene's object its ``true`` material and that material's ``true_eps_real``;
-    with the fit at hand the ``readout`` and the ``source`` of the class (the module docstring)."""
+    with the fit at hand the ``readout``, its ``readout_spread``, the ``readout_classes`` its
+    interval reaches and the ``source`` of the class (the module docstring)."""
 
     name: str
     predicted: str
@@ -80,6 +88,8 @@ class MaterialEstimate:
     reference: bool = False  # the calibration reference: rendered as its stated material, not counted
     readout: float | None = None  # |Gamma| at normal incidence read from the data in closed form (None: not read)
     source: str = "head"  # what ``predicted`` reads: "head" or "data" (the readout)
+    readout_spread: float | None = None  # the readout's jackknife standard error over views (None: not known)
+    readout_classes: list[str] | None = None  # the classes the readout +- READOUT_SIGMAS spreads reaches
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -206,15 +216,24 @@ def component_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, 
     return estimates
 
 
+class Reading(NamedTuple):
+    """The closed-form readout of N surfaces: ``value`` (N,) |Gamma| at normal incidence (NaN where
+    the data show nothing of one) and ``spread`` (N,) its jackknife standard error over views (NaN
+    where not known)."""
+
+    value: np.ndarray
+    spread: np.ndarray
+
+
 def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tuple[str, str] | None = None,
-                   gain: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   gain: float | None = None) -> tuple[Reading, Reading]:
     """|Gamma| at normal incidence read from the data in closed form (the module docstring) for a
     finished :class:`~rfsdf.recon.Trainer`: per object of ``scene`` (O,) (told apart by the true
     objects) and per component of ``mesh`` (C,) (as :func:`component_materials` orders them), NaN
-    where the data show nothing of it. Scaled by the ``reference`` (object name, stated material) as
-    the fit was calibrated, else by ``gain`` (the radar's [data units per renderer unit]: a capture's,
-    1 for simulated data), else by the fit's :func:`known_gain`, else by the gain the finished fit
-    wants."""
+    where the data show nothing of it, each with its spread over views. Scaled by the ``reference``
+    (object name, stated material) as the fit was calibrated, else by ``gain`` (the radar's [data
+    units per renderer unit]: a capture's, 1 for simulated data), else by the fit's
+    :func:`known_gain`, else by the gain the finished fit wants."""
     from scipy.spatial import cKDTree
 
     from .recon.calibration import fitted_gain
@@ -232,7 +251,7 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tup
         scale = {"reference": (index, float(class_reflectivities((material,), frequency_hz)[0]))}
     parts = _components(mesh)
     if not parts:  # no surface was reconstructed: nothing to read
-        return np.full(len(objects), np.nan), np.zeros(0)
+        return _unread(len(objects)), _unread(0)
     vertices = cKDTree(np.concatenate([part.vertices for part in parts]))
     labels = torch.as_tensor(np.repeat(np.arange(len(parts)), [len(part.vertices) for part in parts]))
 
@@ -243,8 +262,13 @@ def read_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, reference: tup
     segmenters = [(scene.object_index, len(objects))] if objects else []
     read = read_surface(renderer, surface, segmenters + [(component_of, len(parts))], **scale)
     if read[0].scale is None:  # the reference renders nothing where the data are bright: nothing is absolute
-        return np.full(len(objects), np.nan), np.full(len(parts), np.nan)
-    return (read[0].reflectivity if objects else np.zeros(0)), read[-1].reflectivity
+        return _unread(len(objects)), _unread(len(parts))
+    by_object = Reading(read[0].reflectivity, read[0].spread) if objects else _unread(0)
+    return by_object, Reading(read[-1].reflectivity, read[-1].spread)
+
+
+def _unread(count: int) -> Reading:
+    return Reading(np.full(count, np.nan), np.full(count, np.nan))
 
 
 def known_gain(trainer) -> float | None:
@@ -272,18 +296,31 @@ def fit_materials(trainer, mesh: trimesh.Trimesh, *, scene=None, calibration=Non
                               head_scale=1.0 if fitted is None else fitted / given)
 
 
-def with_readout(estimate: MaterialEstimate, value: float, classes: tuple[str, ...],
-                 frequency_hz: float) -> MaterialEstimate:
-    """``estimate`` with its closed-form ``value`` (NaN: not read) and, where that reads a passive
-    surface (0 < value <= ``READOUT_CEILING``), the class and eps' it gives."""
+def readout_classes(value: float, spread: float, classes: tuple[str, ...], frequency_hz: float) -> list[str]:
+    """The ``classes`` nearest in |Gamma| at normal incidence to some reflectivity within ``value``
+    +- ``READOUT_SIGMAS`` x ``spread``, in the order of ``classes``: those whose |Gamma| lies in that
+    interval and those nearest its ends (each class is nearest on an interval of its own)."""
+    low, high = value - READOUT_SIGMAS * spread, value + READOUT_SIGMAS * spread
+    levels = class_reflectivities(classes, frequency_hz).numpy()
+    reached = set(reflectivity_class(np.array([low, high]), classes, frequency_hz))
+    return [c for c, level in zip(classes, levels) if c in reached or low <= level <= high]
+
+
+def with_readout(estimate: MaterialEstimate, value: float, classes: tuple[str, ...], frequency_hz: float,
+                 spread: float = float("nan")) -> MaterialEstimate:
+    """``estimate`` with its closed-form ``value`` (NaN: not read) and its ``spread`` (NaN: not
+    known) and, where that reads a passive surface (0 < value <= ``READOUT_CEILING``), the class
+    and eps' it gives and the classes its interval reaches."""
     if not np.isfinite(value):
         return estimate
+    known = float(spread) if np.isfinite(spread) else None
     if not 0 < value <= READOUT_CEILING:
-        return replace(estimate, readout=float(value))
+        return replace(estimate, readout=float(value), readout_spread=known)
     predicted = str(reflectivity_class(value, classes, frequency_hz))
     eps_real = None if get_material(predicted).pec else float(eps_of_reflectivity(value))
+    reached = None if known is None else readout_classes(value, known, classes, frequency_hz)
     return replace(estimate, readout=float(value), predicted=predicted, eps_real=eps_real, eps_real_interval=None,
-                   source="data")
+                   source="data", readout_spread=known, readout_classes=reached)
 
 
 def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
@@ -296,7 +333,7 @@ def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
 
 def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *, scene=None,
                        calibration: str, reference: str | None = None, seed: int = 0,
-                       readout: tuple[np.ndarray, np.ndarray] | None = None, head_scale: float = 1.0) -> MaterialReport:
+                       readout: tuple[Reading, Reading] | None = None, head_scale: float = 1.0) -> MaterialReport:
     """The full report: per object (with a scene; the object named ``reference`` marked as
     the calibration's), per component, with the ``readout`` of :func:`read_materials` when
     given, the accuracy. ``head_scale``: the factor that puts the head's reflectivities in the
@@ -306,8 +343,8 @@ def estimate_materials(field, mesh: trimesh.Trimesh, acquisition: Acquisition, *
     components = component_materials(field, mesh, acquisition, seed=seed, scale=head_scale)
     if readout is not None:
         read = partial(with_readout, classes=field.materials, frequency_hz=acquisition.center_frequency_hz)
-        objects = [read(o, value) for o, value in zip(objects, readout[0])]
-        components = [read(c, value) for c, value in zip(components, readout[1])]
+        objects = [read(o, value, spread=spread) for o, value, spread in zip(objects, *readout[0])]
+        components = [read(c, value, spread=spread) for c, value, spread in zip(components, *readout[1])]
     return MaterialReport(objects, components, class_accuracy(objects), calibration, head_scale)
 
 
@@ -403,18 +440,27 @@ def materials_table(materials: dict) -> str:
         truth = f"{e.get('true') or '':<13}" if with_truth else ""
         if e.get("reference"):
             return f"  {e['name']:<26}{truth}(the calibration reference, rendered as stated)"
+        spread = e.get("readout_spread")
+        others = [c for c in e.get("readout_classes") or [] if c != e["predicted"]]
         return (f"  {e['name']:<26}{truth}{e['predicted']:<13}{e.get('source', 'head'):<6}"
-                f"{number(e.get('reflectivity')):>6}{number(e.get('readout')):>6}  {eps:<22}"
-                f"{e['observed_fraction']:>6.0%}")
+                f"{number(e.get('reflectivity')):>6}{number(e.get('readout')):>6}"
+                f"{number(None if spread is None else READOUT_SIGMAS * spread):>6}  {eps:<22}"
+                f"{e['observed_fraction']:>6.0%}" + (f"  or {', '.join(others)}" if others else ""))
 
     head = f"  {'':<26}" + ("true         " if with_truth else "")
     lines = ["materials (the class nearest |Gamma| at normal incidence, from the data's closed-form readout where it "
-             "reads a passive surface, else from the head; eps' [10-90 % of the head's surface]; observed share):",
-             head + f"{'predicted':<13}{'from':<6}{'head':>6}{'data':>6}  {'eps_real':<22}{'seen':>6}"]
+             f"reads a passive surface, else from the head; the readout +- {READOUT_SIGMAS:g} jackknife spreads over "
+             "the views, 'or' the other classes that interval reaches; eps' [10-90 % of the head's surface]; "
+             "observed share):",
+             head + f"{'predicted':<13}{'from':<6}{'head':>6}{'data':>6}{'+-':>6}  {'eps_real':<22}{'seen':>6}"]
     lines += [line(e) for e in materials["objects"]] + [line(e) for e in materials["components"]]
     accuracy = materials["accuracy"]
+    counted = [e for e in materials["objects"]
+               if e["observed_fraction"] >= materials["min_observed_fraction"] and not e.get("reference")]
+    told = sum(len(e.get("readout_classes") or []) == 1 for e in counted)
+    apart = f" ({told} of {len(counted)} told from every other class by the readout's interval)" if counted else ""
     lines.append(f"  accuracy {'-' if accuracy is None else f'{accuracy:.0%}'} over objects at least "
-                 f"{materials['min_observed_fraction']:.0%} observed; calibration: {materials['calibration']}")
+                 f"{materials['min_observed_fraction']:.0%} observed{apart}; calibration: {materials['calibration']}")
     return "\n".join(lines)
 
 

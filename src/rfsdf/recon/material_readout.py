@@ -14,6 +14,11 @@ known material, |Gamma_i| = |Gamma_ref| a_i / a_ref, or by a known radar gain g 
 units to the data's), |Gamma_i| = a_i x the data's peak / g. Without either, only the ratios
 are data.
 
+How far a reading can be trusted is measured the same way: the split is repeated with each view
+left out in turn, and the spread of those readings (the jackknife's standard error over views,
+``SurfaceReadout.spread``) is what a segment's |Gamma| would move by had another set of views seen
+it: a glint one view alone sees, a view whose wrong surface brightens a segment, noise.
+
 Assumptions: the surface is right to a fraction of a millimetre over each glint's Fresnel zone
 (a glint's brightness turns with it: the fitted network's ripples move it up to 15 %, a
 primitive of the right shape reads within a few per cent; :func:`with_primitives`), each
@@ -40,11 +45,15 @@ PRIMITIVE_BAND_M = 3e-3  # within this of an explaining primitive the surface re
 class SurfaceReadout:
     """Per segment its ``brightness`` a_i (S,) over a unit reflector's (NaN: the segment renders
     nothing where the data are bright), the ``scale`` that makes it |Gamma| at normal incidence
-    (None: only ratios are data) and how many ``voxels`` were compared."""
+    (None: only ratios are data), how many ``voxels`` were compared, and the ``spread`` (S,) of
+    the reflectivity (of the brightness without a scale): the jackknife's standard error over the
+    views, each left out in turn (NaN with one view, or where a view left out leaves the segment
+    unlit or the reference unread)."""
 
     brightness: np.ndarray
     scale: float | None
     voxels: int
+    spread: np.ndarray
 
     @property
     def reflectivity(self) -> np.ndarray | None:
@@ -72,7 +81,8 @@ def read_brightness(renderer, labelings: list[tuple[torch.Tensor, int]], *, gain
     first: by a ``reference`` (its segment, its |Gamma| at normal incidence) or, without one, a
     known ``gain``. The segments are rendered together, each distinct one once. A segment that
     renders nothing at the bright voxels (no surface there, or none lit) reads NaN: the data say
-    nothing of it."""
+    nothing of it. Each split is repeated with each view left out, for the readings' spread (the
+    module docstring), from the same rendered images."""
     index = (renderer.observed.abs().max(0).values >= BRIGHT).nonzero().squeeze(1)
     views = torch.arange(renderer.num_views, device=renderer.device)
     masks = [labels.to(renderer.device) == i for labels, count in labelings for i in range(count)]
@@ -84,20 +94,47 @@ def read_brightness(renderer, labelings: list[tuple[torch.Tensor, int]], *, gain
             distinct.append(mask)
         which.append(j)
     rendered = renderer.segment_images(_Unit, views, index, torch.stack(distinct))  # (S, V, X)
-    images = [rendered[j] for j in which]  # one a mask, the labelings' segments one after another
+    images = torch.stack([rendered[j] for j in which])  # one a mask, the labelings' segments one after another
     observed = renderer.observed[:, index].abs()  # the data's peak voxel is bright: X >= 1
-    readouts, start = [], 0
-    for _, count in labelings:
-        mine, start = images[start:start + count], start + count
-        lit = np.array([bool(image.abs().max() > 0) for image in mine])
-        readouts.append(np.where(lit, split_powers(mine, observed), np.nan))
-    scale = None
+    # (1 + V, segments of all labelings): the split with every view, then with each left out
+    every = torch.ones_like(views, dtype=torch.bool)
+    subsets = [every, *(views != v for v in views)] if len(views) > 1 else [every]
+    splits = np.array([_split(images[:, keep], observed[keep], labelings) for keep in subsets])
+    scales = np.full(len(splits), np.nan)  # each split's |Gamma| per unit brightness
     if reference is not None:
         segment, reflectivity = reference
-        scale = reflectivity / readouts[0][segment] if readouts[0][segment] > 0 else None  # NaN > 0 is False
+        read = splits[:, segment]  # NaN where the reference renders nothing
+        scales = np.divide(reflectivity, read, out=scales, where=read > 0)
     elif gain is not None:
-        scale = renderer.observed_peak / gain
-    return [SurfaceReadout(brightness, scale, len(index)) for brightness in readouts]
+        scales[:] = renderer.observed_peak / gain
+    scale = float(scales[0]) if np.isfinite(scales[0]) else None
+    spread = _jackknife(splits[1:] if scale is None else splits[1:] * scales[1:, None])
+    readouts, start = [], 0
+    for _, count in labelings:
+        readouts.append(SurfaceReadout(splits[0, start:start + count], scale, len(index), spread[start:start + count]))
+        start += count
+    return readouts
+
+
+def _jackknife(replicates: np.ndarray) -> np.ndarray:
+    """(S,) the jackknife's standard error from the leave-one-out ``replicates`` (V, S):
+    sqrt((V - 1) / V sum_v (x_v - mean)^2); NaN with fewer than two."""
+    count = len(replicates)
+    if count < 2:
+        return np.full(replicates.shape[1:], np.nan)
+    return np.sqrt((count - 1) / count * ((replicates - replicates.mean(0)) ** 2).sum(0))
+
+
+def _split(images: torch.Tensor, observed: torch.Tensor, labelings) -> np.ndarray:
+    """(sum of counts,) each labeling's segments' brightness split from ``images`` (S, V', X) and
+    the data's amplitudes ``observed`` (V', X), one labeling at a time; NaN where a segment renders
+    nothing."""
+    out, start = [], 0
+    for _, count in labelings:
+        mine, start = list(images[start:start + count]), start + count
+        lit = np.array([bool(image.abs().max() > 0) for image in mine])
+        out.append(np.where(lit, split_powers(mine, observed), np.nan))
+    return np.concatenate(out)
 
 
 def read_surface(renderer, sdf, segmenters: list[tuple], *, gain: float | None = None,
