@@ -49,16 +49,17 @@ def _scores(metrics) -> dict[str, float]:
 def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict:
     """The fit's material readout as the demo reports it (``fit_materials``): per object its true
     and predicted class, what predicted it (the data's closed-form readout or the head), the head's
-    reflectivity and the readout, the observed share, and the class accuracy over the objects
-    counted. A relative fit (no reference, no known gain) is also read in the simulator's gain,
+    reflectivity and the readout (its spread over views and the classes its interval reaches), the
+    observed share, and the class accuracy over the objects counted. A relative fit (no reference, no known gain) is also read in the simulator's gain,
     given after the fit as a calibration capture's would be (``calibration.gain``: every reading
-    times the fitted gain over it): each object's ``readout_known_gain`` and
-    ``predicted_known_gain`` (the same rule), and their ``accuracy_known_gain``."""
+    times the fitted gain over it): each object's ``readout_known_gain``, ``predicted_known_gain``
+    and ``readout_classes_known_gain`` (the same rule), and their ``accuracy_known_gain``."""
     calibration = None if reference is None else check_reference(trainer, reference)
     reported = fit_materials(trainer, mesh, scene=scene, calibration=calibration, seed=seed)
     row = {"accuracy": reported.accuracy, "calibration": reported.calibration,
            "objects": {o.name: {"true": o.true, "predicted": o.predicted, "source": o.source,
                                 "reflectivity": o.reflectivity, "readout": o.readout,
+                                "readout_spread": o.readout_spread, "readout_classes": o.readout_classes,
                                 "observed_fraction": o.observed_fraction, "reference": o.reference}
                        for o in reported.objects}}
     if reference is None and known_gain(trainer) is None:
@@ -70,7 +71,8 @@ def _materials(trainer: Trainer, fit, mesh, reference, scene, seed: int) -> dict
                                    calibration="known", readout=readout, head_scale=scale)
         row["accuracy_known_gain"] = known.accuracy
         for o in known.objects:
-            row["objects"][o.name].update(readout_known_gain=o.readout, predicted_known_gain=o.predicted)
+            row["objects"][o.name].update(readout_known_gain=o.readout, predicted_known_gain=o.predicted,
+                                          readout_classes_known_gain=o.readout_classes)
     return row
 
 
