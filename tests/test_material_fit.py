@@ -245,7 +245,7 @@ def test_the_table_keeps_the_components_classes_under_the_predicted_column():
 def test_the_table_gives_the_readout_s_interval_and_the_classes_it_cannot_tell_apart():
     """A row read from the data shows its interval's half width (2 spreads) and, where that reaches
     another class, "or" it; the accuracy line counts the objects the interval tells from every other
-    class."""
+    class, where some reading has one (not in a report from before the interval)."""
     ball = MaterialEstimate("ball", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19), "wood")
     told = dataclasses.replace(ball, name="told", readout=0.17, source="data", readout_spread=0.01,
                                readout_classes=["wood"])
@@ -257,6 +257,8 @@ def test_the_table_gives_the_readout_s_interval_and_the_classes_it_cannot_tell_a
     assert [line[column - 2:column + 2] for line in lines[2:5]] == ["0.02", "0.02", "   -"], table
     assert lines[3].endswith("or wood") and "or " not in lines[2] and lines[4].split()[-1] == "50%", table
     assert "(1 of 3 told from every other class by the readout's interval)" in lines[-1], table
+    unread = materials_table(MaterialReport([ball], [], 1.0, "relative").as_dict())  # no interval: no count of them
+    assert "told from" not in unread, unread
 
 
 def test_a_readout_of_a_passive_surface_names_the_class_and_any_other_leaves_the_head_s():

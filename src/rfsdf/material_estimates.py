@@ -458,7 +458,8 @@ def materials_table(materials: dict) -> str:
     counted = [e for e in materials["objects"]
                if e["observed_fraction"] >= materials["min_observed_fraction"] and not e.get("reference")]
     told = sum(len(e.get("readout_classes") or []) == 1 for e in counted)
-    apart = f" ({told} of {len(counted)} told from every other class by the readout's interval)" if counted else ""
+    apart = (f" ({told} of {len(counted)} told from every other class by the readout's interval)"
+             if any(e.get("readout_classes") for e in counted) else "")  # none: no interval (a file from before it)
     lines.append(f"  accuracy {'-' if accuracy is None else f'{accuracy:.0%}'} over objects at least "
                  f"{materials['min_observed_fraction']:.0%} observed{apart}; calibration: {materials['calibration']}")
     return "\n".join(lines)
