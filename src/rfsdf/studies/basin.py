@@ -82,7 +82,7 @@ class Settings:
 
 
 QUICK = Settings(scene="sphere", radar="small", voxel_m=0.0075, errors_mm=(1.0, 4.0),
-                 schedules=("amplitude", "complex"), steps=4, width=32, depth=4, regress_steps=100, element_step=1,
+                 schedules=("amplitude-then-complex",), steps=4, width=32, depth=4, regress_steps=100, element_step=1,
                  data_batch=1024, mesh_resolution=48, metric_samples=5_000)
 
 
