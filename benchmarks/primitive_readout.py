@@ -32,7 +32,7 @@ from seeds import _materials
 
 from rfsdf.demo import DemoSettings, with_calibration
 from rfsdf.jsonio import to_json
-from rfsdf.material_estimates import MIN_OBSERVED_FRACTION, _observed_objects
+from rfsdf.material_estimates import _observed_objects, counts
 from rfsdf.materials import class_reflectivities, reflectivity_class
 from rfsdf.mesh import extract_mesh
 from rfsdf.radar.clean import clean_image
@@ -73,7 +73,7 @@ def main() -> None:
     _, rows = _observed_objects(scene, acquisition, 0.002, 40_000, 0)
     objects, right = {}, {"head": 0, "network": 0, "primitives": 0}
     for i, (obj, (_, _, fraction)) in enumerate(zip(scene.objects, rows)):
-        counted = fraction >= MIN_OBSERVED_FRACTION and not head[obj.name]["reference"]
+        counted = counts(fraction, head[obj.name]["reference"])
         row = {"true": truth[i], "observed_fraction": fraction, "counted": counted, "exact_gain": float(exact[i]),
                "head": {"reflectivity": head[obj.name]["reflectivity"], "predicted": head[obj.name]["predicted"]}}
         for name, values in readouts.items():

@@ -12,7 +12,7 @@ from rfsdf.geometry import Grid
 from rfsdf.material_estimates import (
     MIN_OBSERVED_FRACTION, READOUT_CEILING, MaterialEstimate, MaterialReport, class_accuracy, component_materials,
     eps_of_reflectivity, fit_materials, materials_table, object_materials, read_materials, readout_classes,
-    scene_reference, with_readout,
+    counts, scene_reference, with_readout,
 )
 from rfsdf.materials import class_reflectivities, point_reflectivity, reflectivity_class
 from rfsdf.radar import simulate
@@ -228,6 +228,20 @@ def test_a_known_gain_given_after_the_fit_scales_the_head_and_the_readout_alike(
     for before, after in zip(relative.objects + relative.components, known.objects + known.components):
         assert after.reflectivity == pytest.approx(before.reflectivity * scale, rel=1e-6)
         assert after.readout == pytest.approx(before.readout * scale, rel=1e-4)
+
+
+def test_the_accuracy_and_the_tables_count_take_the_same_objects():
+    """An object counts when observed at least the minimum share and not the calibration
+    reference: in :func:`class_accuracy` and in the table's count of objects the interval tells apart."""
+    assert counts(MIN_OBSERVED_FRACTION, False) and not counts(0.99 * MIN_OBSERVED_FRACTION, False)
+    assert not counts(1.0, True) and counts(0.1, False, minimum=0.1)
+    seen = MaterialEstimate("seen", "wood", {"wood": 1.0}, 2.0, (1.8, 2.2), 0.5, 0.17, (0.15, 0.19), "wood",
+                            readout=0.17, readout_spread=0.01, readout_classes=["wood"])
+    glimpsed = dataclasses.replace(seen, name="glimpsed", observed_fraction=0.1, true="metal")
+    reference = dataclasses.replace(seen, name="plate", reference=True, true="metal")
+    report = MaterialReport([seen, glimpsed, reference], [], class_accuracy([seen, glimpsed, reference]), "relative")
+    assert report.accuracy == 1.0  # the wrong two do not count
+    assert "(1 of 1 told from every other class" in materials_table(report.as_dict())
 
 
 def test_the_table_keeps_the_components_classes_under_the_predicted_column():

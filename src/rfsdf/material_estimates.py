@@ -50,7 +50,7 @@ from .radar.coverage import observed_mask
 
 __all__ = ["MIN_OBSERVED_FRACTION", "READOUT_CEILING", "READOUT_SIGMAS", "MaterialEstimate", "MaterialReport",
            "Reading", "estimate_materials", "object_materials", "component_materials", "read_materials", "known_gain",
-           "fit_materials", "with_readout", "readout_classes", "class_accuracy", "point_classes",
+           "fit_materials", "with_readout", "readout_classes", "counts", "class_accuracy", "point_classes",
            "eps_of_reflectivity", "paint_mesh", "check_materials_dict", "calibration_text", "scene_reference",
            "materials_table", "run_materials"]
 
@@ -323,11 +323,16 @@ def with_readout(estimate: MaterialEstimate, value: float, classes: tuple[str, .
                    source="data", readout_spread=known, readout_classes=reached)
 
 
+def counts(observed_fraction: float, reference: bool, minimum: float = MIN_OBSERVED_FRACTION) -> bool:
+    """Whether an object counts in the accuracy: observed at least ``minimum`` of its surface,
+    and not a calibration reference (its material was given)."""
+    return observed_fraction >= minimum and not reference
+
+
 def class_accuracy(objects: list[MaterialEstimate]) -> float | None:
-    """Share of the objects observed at least ``MIN_OBSERVED_FRACTION`` whose predicted class
-    is their true material (None when no object is observed enough); a calibration
-    reference, whose material was given, does not count."""
-    counted = [o for o in objects if o.observed_fraction >= MIN_OBSERVED_FRACTION and not o.reference]
+    """Share of the objects that :func:`counts` whose predicted class is their true material
+    (None when none counts)."""
+    counted = [o for o in objects if counts(o.observed_fraction, o.reference)]
     return None if not counted else sum(o.predicted == o.true for o in counted) / len(counted)
 
 
@@ -456,7 +461,7 @@ def materials_table(materials: dict) -> str:
     lines += [line(e) for e in materials["objects"]] + [line(e) for e in materials["components"]]
     accuracy = materials["accuracy"]
     counted = [e for e in materials["objects"]
-               if e["observed_fraction"] >= materials["min_observed_fraction"] and not e.get("reference")]
+               if counts(e["observed_fraction"], e.get("reference", False), materials["min_observed_fraction"])]
     told = sum(len(e.get("readout_classes") or []) == 1 for e in counted)
     apart = (f" ({told} of {len(counted)} told from every other class by the readout's interval)"
              if any(e.get("readout_classes") for e in counted) else "")  # none: no interval (a file from before it)
