@@ -57,7 +57,9 @@ class Settings:
     seed: int = 0
 
 
-QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6, metric_samples=2_000)
+# 1,000 metric samples: the quick run 11.8 s, 16.5 at 2,000 (the threshold sweep's blurred meshes lie inside the
+# ball, where each exact query visits most of its faces), its Chamfer distances within 0.2 mm
+QUICK = Settings(bandwidths_ghz=(1.0, 4.0), arrays_cm=(), snrs_db=(), view_counts=(), steps=6, metric_samples=1_000)
 
 
 @dataclass(frozen=True)
