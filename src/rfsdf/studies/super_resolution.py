@@ -104,12 +104,11 @@ def _psf_widths(radar, half_length_m: float) -> tuple[float, float]:
     return widths[0], widths[1]
 
 
-def _point(setting: dict, settings: Settings) -> Point:
+def _point(setting: dict, settings: Settings, reference) -> Point:
     radar = small_radar(bandwidth_hz=setting["bandwidth_ghz"] * 1e9, array_m=setting["array_cm"] * 1e-2,
                         elements_per_edge=round(setting["array_cm"] / 2) + 1,  # 2 cm apart at every size
                         snr_db=setting["snr_db"], rings=_RINGS[setting["views"]])
     data = ball_data(radar, settings.seed)
-    reference = load_scene("sphere").ground_truth_mesh()
     power = matched_filter(data, GRID, method="exact").power().numpy()
     mf = best_threshold_mesh(power, GRID, reference, samples=settings.metric_samples,
                              seed=settings.seed).metrics.chamfer_l1_mm
@@ -133,10 +132,11 @@ def _point(setting: dict, settings: Settings) -> Point:
 
 def run(settings: Settings) -> Result:
     sweeps = {}
+    reference = load_scene("sphere").ground_truth_mesh()  # the ball's true surface, meshed once
     for key, values in (("bandwidth_ghz", settings.bandwidths_ghz), ("array_cm", settings.arrays_cm),
                         ("snr_db", settings.snrs_db), ("views", settings.view_counts)):
         if values:
-            sweeps[key] = [dataclasses.asdict(_point({**_CENTRE, key: value}, settings)) for value in values]
+            sweeps[key] = [dataclasses.asdict(_point({**_CENTRE, key: value}, settings, reference)) for value in values]
     return Result(sweeps)
 
 
