@@ -98,7 +98,7 @@ class DemoSettings:
 QUICK = DemoSettings(
     # points lambda/1.5 apart (16,000 on the default scene): coarse on purpose, it is a smoke test;
     # 1,000 metric samples (each a query of the true surface's mesh; blurred thresholds put them far
-    # from it, where queries cost most: the tests' toy-radar sphere job 12.5 s, 16 s at 2,000, 19 at 5,000)
+    # from it, where queries cost most: the tests' toy-radar sphere job 12.5 s, 16 s at 2,000)
     voxel_m=0.015, max_surface_samples=20_000, samples_per_wavelength=1.5, mesh_resolution=40, metric_samples=1_000,
     # a sixth of CLEAN's time; its residual floor (the detection threshold) higher than 0.05
     clean_components=50,
