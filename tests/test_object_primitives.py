@@ -1,6 +1,7 @@
 """The warm start's fragments read as primitives (rfsdf.recon.object_primitives)."""
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -9,7 +10,8 @@ from rfsdf import geometry as geo
 from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon import object_primitives
 from rfsdf.recon.glints import glint_caps
-from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, FALLBACK_MARGIN, FIT_LR,
+from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, ACCEPT_WITHIN, BRIDGE_MEDIAN_M,
+                                           BRIDGE_MIN_PEAKS, FALLBACK_MARGIN, FIT_LR,
                                            FRAGMENT_VOXEL_M, FREE_REACH_M, FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M,
                                            LINK_MIN_PEAKS, MIN_FRAGMENT_M3, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
                                            SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
@@ -208,6 +210,43 @@ def test_a_capsule_seen_only_at_its_two_ends_is_read_as_one_capsule():
     assert fit.fragment.labels == (1, 2) and fit.primitive.kind == "capsule" and fit.explains
     torch.testing.assert_close(fit.primitive.log_sizes.detach().exp(), torch.tensor([0.012, 0.03], dtype=torch.float64),
                                rtol=0, atol=7.5e-4)
+
+
+def test_a_box_seen_at_its_rims_is_bridged_across_its_unseen_middle(monkeypatch):
+    """Pantry's concrete block: a box seen only near its two ends, each end two pieces (near each
+    other: one unit), its peaks rim returns up to 2.4 mm off the surface. Linked across the middle, one
+    box explains all four pieces, held to the bridge's median (the default's 0.6 mm reads no box
+    through such peaks), its sizes within a millimetre of the truth's; with fewer than
+    BRIDGE_MIN_PEAKS a side, held to the default, it replaces nothing."""
+    half = torch.tensor([0.015, 0.03, 0.012], dtype=torch.float64)
+    truth = _turned(geo.Box(half))
+    frame = geo.rotation_from_vector(torch.tensor(TURN, dtype=torch.float64))
+    local = lambda p: ((p - torch.tensor(CENTRE, dtype=torch.float64)) @ frame)[:, :2].T  # noqa: E731  (x, y)
+    surface = _on(truth, 20000, seed=3)
+    towards = geo.normals(truth, surface).detach()  # each seen along its normal
+    on_face = truth(surface - 1e-3 * towards) < -0.9e-3  # not on a rim, where the projection gathers many
+    surface, towards = surface[on_face], towards[on_face]
+    off = (torch.rand(len(surface), generator=torch.Generator().manual_seed(4), dtype=torch.float64) - 0.5) * 4.8e-3
+    peaks = surface + off[:, None] * towards
+    warm = _on(lambda p: truth(p) - 0.001, 6000, seed=5)
+    quarters = [lambda x, y, sx=sx, sy=sy: (sx * x > 0.004) & (sy * y > 0.02) for sx in (1, -1) for sy in (1, -1)]
+    mine = [torch.nonzero(quarter(*local(surface))).squeeze(1)[:BRIDGE_MIN_PEAKS // 2 + 5] for quarter in quarters]
+    pieces = [Fragment((label,), peaks[seen], warm[quarter(*local(warm))][::4])
+              for label, (seen, quarter) in enumerate(zip(mine, quarters), start=1)]
+    assert near_groups(pieces) == [[0, 2], [1, 3]]  # each end's two pieces
+    seen = torch.cat(mine)
+    free = free_space(peaks[seen], towards[seen], [-0.2] * 3, [0.2] * 3)[::4]
+    unfitted = [FragmentFit(piece, FramedPrimitive("sphere", CENTRE, [1e-6] * 3, [0.01]), math.inf, math.inf, 0.0, 0.0)
+                for piece in pieces]
+    (fit,) = explain_linked(unfitted, truth, free)
+    assert sorted(fit.fragment.labels) == [1, 2, 3, 4] and fit.primitive.kind == "box" and fit.explains
+    assert ACCEPT_MEDIAN_M < fit.peaks_median_m < BRIDGE_MEDIAN_M
+    torch.testing.assert_close(fit.primitive.log_sizes.detach().exp().sort().values, half.sort().values,
+                               rtol=0, atol=1e-3)
+    held = replace(fit, accept_median_m=ACCEPT_MEDIAN_M, accept_within=ACCEPT_WITHIN)  # the same box, by default
+    monkeypatch.setattr(object_primitives, "explain_fragment", lambda fragment, free: held)
+    monkeypatch.setattr(object_primitives, "BRIDGE_MIN_PEAKS", 2 * len(mine[0]) + 1)
+    assert [fit.fragment.labels for fit in explain_linked(unfitted, truth, free)] == [(1,), (2,), (3,), (4,)]
 
 
 def test_a_box_seen_on_its_two_ends_off_each_other_is_read_along_its_faces():
