@@ -11,7 +11,7 @@ from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon import object_primitives
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, ACCEPT_WITHIN, BRIDGE_MEDIAN_M,
-                                           BRIDGE_MIN_PEAKS, FALLBACK_MARGIN, FIT_LR,
+                                           BRIDGE_MIN_PEAKS, FIT_LR,
                                            FRAGMENT_VOXEL_M, FREE_REACH_M, FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M,
                                            LINK_MIN_PEAKS, MIN_FRAGMENT_M3, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
                                            SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
