@@ -11,13 +11,12 @@ from rfsdf.geometry import project_to_zero_set
 from rfsdf.recon import object_primitives
 from rfsdf.recon.glints import glint_caps
 from rfsdf.recon.object_primitives import (ACCEPT_BETTER_M, ACCEPT_MEDIAN_M, ACCEPT_WITHIN, BRIDGE_MEDIAN_M,
-                                           BRIDGE_MIN_PEAKS, FIT_LR,
-                                           FRAGMENT_VOXEL_M, FREE_REACH_M, FREE_STEPS_M, JOIN_REACH_M, LINK_CLEAR_M,
-                                           LINK_MIN_PEAKS, MIN_FRAGMENT_M3, MIN_PEAKS, ROTATION_LR_SCALE, SIZE_LR_SCALE,
-                                           SURVIVORS, FramedPrimitive, Fragment, FragmentFit, _Evidence, candidates,
-                                           explain_fragment, explain_linked, explain_together, fit_fragment, fragments,
-                                           free_space, joined, linked_pairs, near_groups, primitive_surface,
-                                           primitive_target)
+                                           BRIDGE_MIN_PEAKS, FIT_LR, FRAGMENT_VOXEL_M, FREE_REACH_M, FREE_STEPS_M,
+                                           JOIN_REACH_M, LINK_CLEAR_M, LINK_MIN_PEAKS, MIN_FRAGMENT_M3, MIN_PEAKS,
+                                           ROTATION_LR_SCALE, SIZE_LR_SCALE, SURVIVORS, FramedPrimitive, Fragment,
+                                           FragmentFit, _Evidence, candidates, bridged_peaks, explain_fragment,
+                                           explain_linked, explain_together, fit_fragment, fragments, free_space,
+                                           joined, linked_pairs, near_groups, primitive_surface, primitive_target)
 
 TURN = [0.2, -0.3, 0.4]  # a rotation vector [rad]
 CENTRE = [0.01, -0.02, 0.005]
@@ -247,6 +246,24 @@ def test_a_box_seen_at_its_rims_is_bridged_across_its_unseen_middle(monkeypatch)
     monkeypatch.setattr(object_primitives, "explain_fragment", lambda fragment, free: held)
     monkeypatch.setattr(object_primitives, "BRIDGE_MIN_PEAKS", 2 * len(mine[0]) + 1)
     assert [fit.fragment.labels for fit in explain_linked(unfitted, truth, free)] == [(1,), (2,), (3,), (4,)]
+
+
+def test_a_bridges_peaks_are_the_ones_the_fit_does_not_hold():
+    """Of three fits, one explains its peaks by the default's acceptance, one only as a bridge (its
+    median over ACCEPT_MEDIAN_M, its acceptance loosened) and one not at all: only the bridge's peaks
+    are marked, found among all the peaks by their coordinates."""
+    points = torch.rand(30, 3, generator=torch.Generator().manual_seed(0)) * 0.1  # float32, as the fit's peaks
+    sphere = FramedPrimitive("sphere", CENTRE, [1e-6] * 3, [0.01])
+
+    def fit(rows: slice, median_m: float, **acceptance) -> FragmentFit:
+        piece = Fragment((rows.start,), points[rows].double(), points[rows].double())
+        return FragmentFit(piece, sphere, 0.0, median_m, 0.5 if acceptance else 0.9, 0.0, **acceptance)
+
+    near, bridge, missed = fit(slice(0, 10), 0.3e-3), fit(slice(10, 20), 1.2e-3, accept_median_m=BRIDGE_MEDIAN_M,
+                                                            accept_within=0.4), fit(slice(20, 30), 1.2e-3)
+    assert near.explains and not near.bridged and bridge.explains and bridge.bridged and not missed.explains
+    assert bridged_peaks([near, bridge, missed], points).tolist() == [False] * 10 + [True] * 10 + [False] * 10
+    assert not bridged_peaks([near, missed], points).any() and len(bridged_peaks([bridge], points[:0])) == 0
 
 
 def test_a_box_seen_on_its_two_ends_off_each_other_is_read_along_its_faces():

@@ -600,25 +600,34 @@ def test_the_warm_start_gets_each_views_range_peaks_outside_the_excluded_voxels(
 def test_the_warm_start_hands_its_field_and_peaks_to_the_primitives_when_asked(sphere_data, tmp_path, monkeypatch):
     """``[init] primitives`` (on by default) runs primitive_start on the warm start's field
     with its range peaks and the directions towards their views; with ``peak_cone_deg`` each
-    peak's glint cap too, on the sphere of its range (its distance from its view's centre)."""
+    peak's glint cap too, on the sphere of its range (its distance from its view's centre). The
+    peaks of a bridged fit (rim returns) are no longer held: the fit's peaks are the others."""
     import rfsdf.recon.trainer as trainer_module
 
     _, data = sphere_data
-    seen = {}
-    fits = [SimpleNamespace(explains=True, primitive="kept"), SimpleNamespace(explains=False, primitive="left")]
+    seen, fits = {}, []
+
+    def primitive_start(field, points, towards, *args, caps=None, **kw):
+        seen.update(points=points, towards=towards, caps=caps)
+        fits[:] = [SimpleNamespace(explains=True, bridged=False, primitive="kept", fragment=None),
+                   SimpleNamespace(explains=False, bridged=False, primitive="left", fragment=None),
+                   SimpleNamespace(explains=True, bridged=True, primitive="bridge",
+                                   fragment=SimpleNamespace(peaks=points[:3].double()))]
+        return fits
+
     monkeypatch.setattr(trainer_module, "warm_start", lambda *args, **kw: None)
-    monkeypatch.setattr(trainer_module, "primitive_start", lambda field, points, towards, *a, caps=None, **kw:
-                        seen.update(points=points, towards=towards, caps=caps) or fits)
+    monkeypatch.setattr(trainer_module, "primitive_start", primitive_start)
     for on, cone in ((False, 0.0), (True, 0.0), (True, 0.5)):
         settings = _config(steps=2).model_dump()
         settings["init"].update(method="mf", threshold=0.05, primitives=on, peak_cone_deg=cone)
         trainer = Trainer(Problem(data, _grid(10)), ReconConfig.model_validate(settings), tmp_path / f"{on}{cone}")
         trainer.warm_start()
         assert (trainer.primitive_fits == fits) is on and (seen != {}) is on
-        assert trainer.primitives == (["kept"] if on else [])  # those that replaced their fragments
+        assert trainer.primitives == (["kept", "bridge"] if on else [])  # those that replaced their fragments
         assert (seen.get("caps") is not None) is (cone > 0)
-    torch.testing.assert_close(seen["points"], trainer.peaks[0])
-    torch.testing.assert_close(seen["towards"], trainer.peaks[3])
+    torch.testing.assert_close(seen["points"][3:], trainer.peaks[0])  # the bridge's three peaks not held
+    torch.testing.assert_close(seen["towards"][3:], trainer.peaks[3])
+    seen.update(points=seen["points"][3:], caps=seen["caps"][3:])
     centres = data.acquisition.view_centres()[0].to(trainer.peaks[0])[trainer.peaks[2]]
     ranges = (seen["points"] - centres).norm(dim=1)
     torch.testing.assert_close(trainer.peak_ranges(), ranges)

@@ -41,7 +41,7 @@ from .config import ReconConfig
 from .glints import cap_minimum, glint_caps
 from .losses import (DATA_LOSSES, bands_of, eikonal_loss, material_cross_entropy, material_entropy, normal_variation,
                      peak_match_loss, uses_phase)
-from .object_primitives import FramedPrimitive, primitive_start
+from .object_primitives import FramedPrimitive, bridged_peaks, primitive_start
 from .render import RENDERERS
 from .sampling import bending_pairs, data_batch, data_voxel_probabilities, eikonal_points, pooled_amplitude
 from .schedules import SCHEDULES
@@ -299,6 +299,8 @@ class Trainer:
                 batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share, generator=self.generator,
                 caps=None if caps is None else caps.cpu(), progress=self.progress)
             self.primitives = [fit.primitive for fit in self.primitive_fits if fit.explains]
+            held = ~bridged_peaks(self.primitive_fits, self.peaks[0].cpu())  # a bridge's rim returns are not held
+            self.peaks = tuple(a[held.to(a.device)] for a in self.peaks)
 
     @torch.no_grad()
     def refresh_surface(self) -> None:
