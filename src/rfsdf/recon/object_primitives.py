@@ -114,10 +114,11 @@ LINK_CLEAR_M, LINK_MIN_PEAKS = 3e-3, 20
 # at least BRIDGE_MIN_PEAKS a side is explained by a primitive within BRIDGE_MEDIAN_M of its peaks
 # (median; BRIDGE_WITHIN of them within 1 mm) that carves no more than ACCEPT_CARVED. Read off every
 # linked pair of the eight scenes' seed-0 warm starts: pantry's block and cut glass box, one box each,
-# 1.17 and 1.26 mm (0.44-0.45 within; its fit 1.85 -> 1.13 mm observed); workbench's metal cylinder
-# as a box 1.55 (0.37), which taken made its fit worse (3.44 -> 3.60 mm); every pair of two objects
-# with 50 peaks a side 2.16 mm or more, 0.33 or fewer within; one of 30 and 27 peaks, 1.26 (workshop's
-# corner and bottle; docs/results/demo-quality.md, "Bridges of rim returns")
+# 1.17 and 1.26 mm (0.44-0.45 within; its fit 1.85 -> 0.85 mm observed, their peaks let go:
+# bridged_peaks); workbench's metal cylinder as a box 1.55 (0.37), which taken made its fit worse
+# (3.44 -> 3.60 mm); every pair of two objects with 50 peaks a side 2.16 mm or more, 0.33 or fewer
+# within; one of 30 and 27 peaks, 1.26 (workshop's corner and bottle; docs/results/demo-quality.md,
+# "Bridges of rim returns")
 BRIDGE_MIN_PEAKS, BRIDGE_MEDIAN_M, BRIDGE_WITHIN = 50, 1.5e-3, 0.4
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
