@@ -43,7 +43,7 @@ def _scene(name: str, cone_deg: float) -> dict:
     result = {"warm start": scored(warm.sdf)}
     for variant, occluder in (("every line", None), ("clear lines", warm.sdf)):
         free = free_space(points, towards, scene.lower_m, scene.upper_m, occluder=occluder)
-        fits = explain_all(pieces, warm.sdf, free)
+        _, fits = explain_all(pieces, warm.sdf, labels, grid, free)
         rows = [{"object": object_of(fit, scene), "fragments": len(fit.fragment.labels), "kind": fit.primitive.kind,
                  "peaks_median_mm": fit.peaks_median_m * 1e3, "carved": fit.carved, "replaces": fit.explains}
                 for fit in fits]

@@ -107,7 +107,7 @@ def main() -> None:
     caps = trainer.peak_caps(args.cone)
     labels, fragment_grid, pieces = fragments(warm.sdf, scene.lower_m, scene.upper_m, points, caps)
     free = free_space(points, towards, scene.lower_m, scene.upper_m, occluder=warm.sdf)
-    fits = explain_all(pieces, warm.sdf, free)
+    labels, fits = explain_all(pieces, warm.sdf, labels, fragment_grid, free)
     for fit in fits:
         print(fit.primitive.kind, f"{fit.peaks_median_m * 1e3:.2f} mm", fit.explains, flush=True)
     rows = [{"object": object_of(fit, scene), "fragments": len(fit.fragment.labels), "peaks": len(fit.fragment.peaks),

@@ -29,8 +29,10 @@ peaks (their median |f| below ``ACCEPT_MEDIAN_M``, at least ``ACCEPT_WITHIN`` of
 or, with the peaks read as glints, their median below ``ACCEPT_BETTER_M`` and below the warm
 start's own: a better account of them than the surface it replaces), has more peaks than a
 primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (fewer than
-``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside); elsewhere (an object no
-primitive is) the warm start stays. The views often see one object as several fragments (a torus's
+``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside). A fragment no primitive
+explains may be two objects the warm start joined through a neck: it is split where its interior
+narrows (the watershed of its depth) and each part fitted alone. Elsewhere (an object no primitive
+is) the warm start stays. The views often see one object as several fragments (a torus's
 arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each other are
 fitted again as one, and a primitive that explains them all stands for their own fits; so are two
 farther ones (or near groups no primitive explained) with nothing the views saw between them and
@@ -57,6 +59,8 @@ import torch
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+from skimage.morphology import h_maxima
+from skimage.segmentation import watershed
 
 from .. import geometry as geo
 from ..geometry import Grid, interpolated_sdf, project_to_zero_set
@@ -65,9 +69,10 @@ from .glints import cap_minimum
 from .warm_start import fit_to_image
 
 __all__ = ["PRIMITIVE_KINDS", "FALLBACK_KINDS", "FALLBACK_MARGIN", "FALLBACK_TIE", "MIN_PEAKS", "FramedPrimitive",
-           "Fragment", "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment",
-           "explain_fragment", "near_groups", "explain_together", "linked_pairs", "explain_linked", "explain_all",
-           "bridged_peaks", "primitive_target", "primitive_surface", "regress_to_primitives", "primitive_start"]
+           "Fragment", "FragmentFit", "candidates", "fragments", "joined", "free_space", "fit_fragment", "split",
+           "explain_fragment", "explain_split", "near_groups", "explain_together", "linked_pairs", "explain_linked",
+           "explain_all", "bridged_peaks", "primitive_target", "primitive_surface", "regress_to_primitives",
+           "primitive_start"]
 
 PRIMITIVE_KINDS = ("sphere", "box", "cylinder", "capsule", "torus")
 # a capsule's rounded ends differ from a cylinder's flat ones only where the views see the ends, so
@@ -120,6 +125,12 @@ LINK_CLEAR_M, LINK_MIN_PEAKS = 3e-3, 20
 # within; one of 30 and 27 peaks, 1.26 (workshop's corner and bottle; docs/results/demo-quality.md,
 # "Bridges of rim returns")
 BRIDGE_MIN_PEAKS, BRIDGE_MEDIAN_M, BRIDGE_WITHIN = 50, 1.5e-3, 0.4
+# a piece no primitive explains may be two objects the warm start joined through a neck: larder's concrete
+# brick and glass ball, 9 mm apart, are one piece of 222 peaks, a box 1.66 mm off them. Such a piece is
+# split where its interior narrows, the watershed of its depth (-f) from the depths' maxima that stand
+# SPLIT_DEPTH_M above the saddle between them (h-maxima), and each part with peaks fitted alone; a part
+# a primitive explains replaces that part, the rest stays the warm start
+SPLIT_DEPTH_M = 3e-3
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
 SURFACE_WEIGHT = 0.1
@@ -467,6 +478,36 @@ def fit_fragment(fragment: Fragment, free: torch.Tensor, *, kinds=PRIMITIVE_KIND
                        carved)
 
 
+def split(piece: Fragment, sdf, labels: np.ndarray, grid: Grid) -> tuple[np.ndarray, list[Fragment]]:
+    """A one-label ``piece`` of ``sdf``'s interior (float32 points -> f [m]) labelled on ``grid``
+    cut into the watershed basins of its depth -f from maxima ``SPLIT_DEPTH_M`` above their saddles
+    (the module docstring's split): ``labels`` with each basin given a new label after the largest,
+    and one fragment a basin (its peaks, caps and surface points those nearest its voxels; see
+    :func:`fragments`); ``labels`` and no parts where the piece has one maximum."""
+    (label,) = piece.labels
+    inside = labels == label
+    corner = np.argwhere(inside).min(0)
+    box = tuple(slice(a, b + 1) for a, b in zip(corner, np.argwhere(inside).max(0)))
+    mine = inside[box]
+    points = grid.points().reshape(*grid.shape, 3)[box][mine]
+    with torch.no_grad():
+        depth = np.zeros(mine.shape)
+        depth[mine] = -sdf(points).double().numpy()
+    markers, count = ndimage.label(h_maxima(depth, SPLIT_DEPTH_M) & mine)
+    if count < 2:
+        return labels, []
+    basins = watershed(-depth, markers, mask=mine)
+    labels = labels.copy()
+    labels[box][mine] = basins[mine] + labels.max()
+    names = np.unique(labels[box][mine])
+    owner = _owners(grid.points(), labels, names)
+    peak_owner, surface_owner = owner(piece.peaks), owner(piece.surface)
+    caps = piece.caps
+    return labels, [Fragment((int(name),), piece.peaks[held], piece.surface[surface_owner == name],
+                             None if caps is None else caps[held], _warm_median(sdf, caps, held))
+                    for name in names for held in [peak_owner == name]]
+
+
 def explain_fragment(fragment: Fragment, free: torch.Tensor) -> FragmentFit:
     """:func:`fit_fragment` over the kinds but ``FALLBACK_KINDS`` and over those apart: the
     fallback's fit where it explains the fragment and the first does not, or where its median
@@ -551,13 +592,34 @@ def explain_linked(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[Fra
     return [fit for i, fit in enumerate(fits) if i not in replaced] + together
 
 
-def explain_all(pieces: list[Fragment], sdf, free: torch.Tensor, *, progress: bool = False) -> list[FragmentFit]:
+def explain_split(fits: list[FragmentFit], sdf, labels: np.ndarray, grid: Grid,
+                  free: torch.Tensor) -> tuple[np.ndarray, list[FragmentFit]]:
+    """``fits`` with each of one label whose primitive does not explain it :func:`split` (on
+    ``labels``' ``grid``, of ``sdf``) and its parts with peaks fitted alone (:func:`explain_fragment`
+    with ``free``), where a primitive explains one of them; and ``labels`` with those parts."""
+    kept = []
+    for fit in fits:
+        parts = []
+        if not fit.explains and len(fit.fragment.labels) == 1 and len(fit.fragment.peaks) >= 2 * MIN_PEAKS:
+            cut, pieces = split(fit.fragment, sdf, labels, grid)
+            parts = [explain_fragment(piece, free) for piece in pieces if len(piece.peaks)]
+        if any(part.explains for part in parts):
+            labels, kept = cut, kept + parts
+        else:
+            kept.append(fit)
+    return labels, kept
+
+
+def explain_all(pieces: list[Fragment], sdf, labels: np.ndarray, grid: Grid, free: torch.Tensor, *,
+                progress: bool = False) -> tuple[np.ndarray, list[FragmentFit]]:
     """:func:`explain_fragment` of every one of ``pieces`` with peaks (one without has nothing to
-    explain), then :func:`explain_together` of the near ones and :func:`explain_linked` of the far
-    ones (over ``sdf``, with ``free``)."""
+    explain), :func:`explain_split` of those no primitive explains (on ``labels``' ``grid``), then
+    :func:`explain_together` of the near ones and :func:`explain_linked` of the far ones (over ``sdf``,
+    with ``free``): the labels, with any split, and the fits."""
     seen = [piece for piece in pieces if len(piece.peaks)]
     fits = [explain_fragment(piece, free) for piece in progress_bar(seen, desc="primitives", enabled=progress)]
-    return explain_linked(explain_together(fits, sdf, free), sdf, free)
+    labels, fits = explain_split(fits, sdf, labels, grid, free)
+    return labels, explain_linked(explain_together(fits, sdf, free), sdf, free)
 
 
 def bridged_peaks(fits: list[FragmentFit], points: torch.Tensor) -> torch.Tensor:
@@ -651,7 +713,7 @@ def primitive_start(field, points: torch.Tensor, towards: torch.Tensor, lower_m,
     frozen = copy.deepcopy(field).cpu().requires_grad_(False)  # the primitives' work is small: on the CPU
     labels, grid, pieces = fragments(frozen.sdf, lower_m, upper_m, points, caps)
     free = free_space(points, towards, lower_m, upper_m, occluder=frozen.sdf)
-    fits = explain_all(pieces, frozen.sdf, free, progress=progress)
+    labels, fits = explain_all(pieces, frozen.sdf, labels, grid, free, progress=progress)
     chosen = [fit for fit in fits if fit.explains]
     unplaced = tuple(piece for piece in pieces if len(piece.peaks) < MIN_PEAKS)
     if chosen or unplaced:
