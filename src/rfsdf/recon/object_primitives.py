@@ -486,8 +486,8 @@ def split(piece: Fragment, sdf, labels: np.ndarray, grid: Grid) -> tuple[np.ndar
     :func:`fragments`); ``labels`` and no parts where the piece has one maximum."""
     (label,) = piece.labels
     inside = labels == label
-    corner = np.argwhere(inside).min(0)
-    box = tuple(slice(a, b + 1) for a, b in zip(corner, np.argwhere(inside).max(0)))
+    where = np.argwhere(inside)
+    box = tuple(slice(a, b + 1) for a, b in zip(where.min(0), where.max(0)))
     mine = inside[box]
     points = grid.points().reshape(*grid.shape, 3)[box][mine]
     with torch.no_grad():
