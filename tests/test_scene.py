@@ -28,9 +28,9 @@ BENCHMARK_SCENES = sorted((Path(__file__).parents[1] / "benchmarks" / "scenes").
 
 @pytest.mark.parametrize("path", BENCHMARK_SCENES, ids=lambda path: path.stem)
 def test_every_benchmark_scene_loads_with_its_objects_in_its_bounds(path):
-    """A benchmark's scene file (or scene model, at its start) loads, and each object reaches into the bounds (within a voxel
-    diagonal of a 64-voxel grid): a typo, or a transform that turns an object about the origin
-    out of the scene, shows here and not only when a benchmark runs."""
+    """A benchmark's scene file (or scene model, at its start) loads, and each object reaches into
+    the bounds (within a voxel diagonal of a 64-voxel grid): a typo, or a transform that turns an
+    object about the origin out of the scene, shows here and not only when a benchmark runs."""
     if path.stem.endswith("-model"):  # a scene model: its scene at the start
         model = load_scene_model(path)
         scene = Scene(model.spec, model.base_dir)
