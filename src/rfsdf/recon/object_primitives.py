@@ -489,10 +489,10 @@ def split(piece: Fragment, sdf, labels: np.ndarray, grid: Grid) -> tuple[np.ndar
     where = np.argwhere(inside)
     box = tuple(slice(a, b + 1) for a, b in zip(where.min(0), where.max(0)))
     mine = inside[box]
-    points = grid.points().reshape(*grid.shape, 3)[box][mine]
+    centres = grid.points()
     with torch.no_grad():
         depth = np.zeros(mine.shape)
-        depth[mine] = -sdf(points).double().numpy()
+        depth[mine] = -sdf(centres.reshape(*grid.shape, 3)[box][mine]).double().numpy()
     markers, count = ndimage.label(h_maxima(depth, SPLIT_DEPTH_M) & mine)
     if count < 2:
         return labels, []
@@ -500,7 +500,7 @@ def split(piece: Fragment, sdf, labels: np.ndarray, grid: Grid) -> tuple[np.ndar
     labels = labels.copy()
     labels[box][mine] = basins[mine] + labels.max()
     names = np.unique(labels[box][mine])
-    owner = _owners(grid.points(), labels, names)
+    owner = _owners(centres, labels, names)
     peak_owner, surface_owner = owner(piece.peaks), owner(piece.surface)
     caps = piece.caps
     return labels, [Fragment((int(name),), piece.peaks[held], piece.surface[surface_owner == name],
