@@ -441,6 +441,40 @@ def test_the_target_replaces_the_explained_fragments_and_cuts_the_unplaced_ones(
     assert primitive_target(warm, labels, grid, fits[1:]) is warm
 
 
+def test_a_few_bright_peaks_place_a_surface_and_a_few_faint_ones_are_cut(monkeypatch):
+    """Two 7 mm blobs of 3 peaks each beside a ball of ``MIN_PEAKS``: the blob whose peaks stand at
+    0.05 of the median amplitude (the demo's seed-1 floater: a double bounce) is cut from the
+    target, the one at twice the median (larder's thin panel, seen in a strip of 8 peaks) stays
+    the warm start; without amplitudes every piece of fewer than ``MIN_PEAKS`` peaks is cut."""
+    ball = geo.Sphere(0.02).translate([0.05, 0.0, 0.0])
+    faint, bright = geo.Sphere(0.007).translate([0.0, 0.06, 0.0]), geo.Sphere(0.007).translate([-0.05, -0.04, 0.0])
+    parts = (ball, faint, bright)
+    warm = lambda p: torch.stack([part(p.double()) for part in parts]).min(0).values.to(p.dtype)  # noqa: E731
+    peaks = torch.cat([_on(ball, 100, seed=3)[:MIN_PEAKS], _on(faint, 20, seed=5)[:3], _on(bright, 20, seed=6)[:3]])
+    amplitude = torch.cat([torch.linspace(0.5, 1.5, MIN_PEAKS), torch.full((3,), 0.05), torch.full((3,), 2.0)])
+    along_x = lambda piece: float(piece.peaks[:, 0].mean())  # noqa: E731  (bright, faint, ball)
+    by_centre = sorted(fragments(warm, [-0.1] * 3, [0.1] * 3, peaks, amplitude=amplitude)[2], key=along_x)
+    torch.testing.assert_close(torch.cat([piece.brightness for piece in by_centre[::-1]]),
+                               amplitude.double() / amplitude.double().median())
+    assert [piece.placed for piece in by_centre] == [True, False, True]
+    assert joined(by_centre[:2], warm).brightness.tolist() == [*by_centre[0].brightness, *by_centre[1].brightness]
+    assert [piece.placed for piece in sorted(fragments(warm, [-0.1] * 3, [0.1] * 3, peaks)[2], key=along_x)] == [
+        False, False, True]
+
+    # primitive_start cuts the faint blob from the target it regresses onto and keeps the bright one
+    targets = []
+    monkeypatch.setattr(object_primitives, "explain_all", lambda pieces, sdf, labels, *a, **k: (labels, []))
+    monkeypatch.setattr(object_primitives, "regress_to_primitives",
+                        lambda field, frozen, target, *a, **k: targets.append(target))
+    field = torch.nn.Module()
+    field.sdf = warm
+    object_primitives.primitive_start(field, peaks, -peaks / peaks.norm(dim=1, keepdim=True), [-0.1] * 3, [0.1] * 3,
+                                      lr=1e-3, batch=64, eikonal_weight=0.1, near_share=0.5,
+                                      generator=torch.Generator(), amplitude=amplitude)
+    at = torch.tensor([[0.0, 0.06, 0.0], [-0.05, -0.04, 0.0]])
+    assert targets[0](at)[0] > 0.02 and targets[0](at)[1] == warm(at)[1]
+
+
 def test_a_sliver_is_a_fragment_when_it_holds_enough_peaks():
     """A warm start's piece smaller than ``MIN_FRAGMENT_M3`` is a floater, left as it is, unless
     the views placed ``MIN_PEAKS`` peaks on it: the demo's wood block, its far face a sliver of

@@ -297,7 +297,7 @@ class Trainer:
             self.primitive_fits = primitive_start(
                 self.field, self.peaks[0].cpu(), self.peaks[3].cpu(), grid.lower_m, grid.upper_m, lr=ic.lr,
                 batch=ic.batch, eikonal_weight=ic.eikonal_weight, near_share=ic.near_share, generator=self.generator,
-                caps=None if caps is None else caps.cpu(), progress=self.progress)
+                caps=None if caps is None else caps.cpu(), amplitude=self.peaks[1].cpu(), progress=self.progress)
             self.primitives = [fit.primitive for fit in self.primitive_fits if fit.explains]
             held = ~bridged_peaks(self.primitive_fits, self.peaks[0].cpu())  # a bridge's rim returns are not held
             self.peaks = tuple(a[held.to(a.device)] for a in self.peaks)
