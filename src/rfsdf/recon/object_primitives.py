@@ -379,10 +379,18 @@ def fragments(sdf, lower_m, upper_m, peaks: torch.Tensor, caps: torch.Tensor | N
     surface_owner, peak_owner = owner(surface), owner(peaks)
     caps = None if caps is None else caps.double()
     brightness = None if amplitude is None else amplitude.double() / amplitude.double().median()
-    return labels, grid, [Fragment((label,), peaks[mine], surface[surface_owner == label],
-                                   None if caps is None else caps[mine], _warm_median(sdf, caps, mine),
-                                   None if brightness is None else brightness[mine])
-                          for label in kept for mine in [peak_owner == label]]
+    return labels, grid, [_owned(sdf, label, peak_owner == label, peaks, caps, brightness,
+                                 surface[surface_owner == label]) for label in kept]
+
+
+def _owned(sdf, label: int, held: torch.Tensor, peaks: torch.Tensor, caps: torch.Tensor | None,
+           brightness: torch.Tensor | None, surface: torch.Tensor) -> Fragment:
+    """The fragment ``label`` of the ``peaks`` (P, 3) [m] selected by ``held`` (P,) bool, with their
+    ``caps`` and ``brightness`` where given, and its ``surface`` points (S, 3) [m]."""
+    def pick(values: torch.Tensor | None) -> torch.Tensor | None:
+        return None if values is None else values[held]
+
+    return Fragment((label,), peaks[held], surface, pick(caps), _warm_median(sdf, caps, held), pick(brightness))
 
 
 def _owners(points: torch.Tensor, labels: np.ndarray, kept) -> Callable[[torch.Tensor], torch.Tensor]:
@@ -525,11 +533,8 @@ def split(piece: Fragment, sdf, labels: np.ndarray, grid: Grid) -> tuple[np.ndar
     names = np.unique(labels[box][mine])
     owner = _owners(centres, labels, names)
     peak_owner, surface_owner = owner(piece.peaks), owner(piece.surface)
-    caps, brightness = piece.caps, piece.brightness
-    return labels, [Fragment((int(name),), piece.peaks[held], piece.surface[surface_owner == name],
-                             None if caps is None else caps[held], _warm_median(sdf, caps, held),
-                             None if brightness is None else brightness[held])
-                    for name in names for held in [peak_owner == name]]
+    return labels, [_owned(sdf, int(name), peak_owner == name, piece.peaks, piece.caps, piece.brightness,
+                           piece.surface[surface_owner == name]) for name in names]
 
 
 def explain_fragment(fragment: Fragment, free: torch.Tensor) -> FragmentFit:
