@@ -16,6 +16,7 @@ from rfsdf.field import RadarField
 from rfsdf.geometry import Grid, gradient
 from rfsdf.materials import mixture_fresnel
 from rfsdf.metrics import surface_offset_mm
+from rfsdf.parallel import use_threads
 from rfsdf.radar import matched_filter, simulate
 from rfsdf.radar.scattering import lit_mask
 from rfsdf.radar.simulate import SAMPLES_PER_WAVELENGTH
@@ -870,9 +871,9 @@ def one_thread():
     run's in the eighth digit, which neither this file alone nor six straight runs in one
     process with other allocations between them reproduced."""
     default = torch.get_num_threads()
-    torch.set_num_threads(1)
+    use_threads(1)  # numba's too: its loops would set the shared OpenMP team back
     yield
-    torch.set_num_threads(default)
+    use_threads(default)
 
 
 def test_resume_after_a_kill_reproduces_the_uninterrupted_run(sphere_data, tmp_path, one_thread):

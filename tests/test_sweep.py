@@ -108,9 +108,10 @@ def test_pool_and_ray_give_the_same_rows_a_failure_is_a_row_and_a_rerun_reuses_f
     assert csv_lines[0].startswith("job,scene,radar,seed") and len(csv_lines) == 4 and ",failed," in csv_lines[3]
     assert (tmp_path / "pool" / "summary.png").stat().st_size > 0
 
-    pytest.importorskip("ray", reason="Ray is not installed (pip install 'rfsdf[cluster]')")
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'rfsdf[cluster]')")
     # Ray runs the second seed and the failure (one fit fewer: the suite's time), 1 thread each
     on_ray = run_sweep(jobs[1:], tmp_path / "ray", workers=2, ray_address="local", log=lambda _: None)
+    assert not ray.is_initialized()  # the instance it started is shut down, not left running
     differences = _differences(_metrics(on_ray, tmp_path / "ray"), _metrics(pool[1:], tmp_path / "pool"))
     assert not differences, differences
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())

@@ -22,7 +22,7 @@ import tomli_w
 
 from .atomic import atomic_path
 from .jsonio import write_json
-from .parallel import error_line, map_tasks, threads_per_worker
+from .parallel import error_line, map_tasks, threads_per_worker, use_threads
 from .random_scenes import random_scene_spec
 
 __all__ = ["check_dataset", "simulate_scene_file", "simulate_dataset"]
@@ -65,13 +65,11 @@ def simulate_scene_file(name: str, seed: int, radar_name: str, folder: str, thre
     """Write ``folder``/name.toml (random scene ``seed``) and name.h5 (its measurements by
     the radar, simulation seed ``seed``, on ``device`` as the worker resolves it); the dataset
     row. Never raises: a failure is the row."""
-    import torch
-
     from .device import resolve_device
     from .radar import check_materials_in_band, check_radar_for_scene, load_radar, simulate, write_measurements
     from .scene import load_scene
 
-    torch.set_num_threads(max(1, threads))
+    use_threads(threads)
     spec = random_scene_spec(seed)
     row = {"name": name, "seed": seed, "objects": len(spec["objects"]),
            "materials": sorted({o["material"] for o in spec["objects"]}), "status": "reused", "error": "", "seconds": 0.0}

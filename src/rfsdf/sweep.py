@@ -48,7 +48,7 @@ from .config import StrictModel, merge_tables, read_toml, validate
 from .demo import QUICK, SETTINGS_NAME, DemoSettings, load_scene_and_radar, run_demo
 from .errors import RfsdfError
 from .jsonio import to_json, write_json
-from .parallel import error_line, map_tasks, threads_per_worker
+from .parallel import error_line, map_tasks, threads_per_worker, use_threads
 from .recon import ReconConfig
 
 __all__ = ["JobSpec", "SweepSpec", "Job", "MAX_JOBS", "count_jobs", "load_sweep", "run_job", "run_sweep", "summary_row"]
@@ -159,9 +159,7 @@ def _check_jobs(jobs: list[Job], source: str) -> None:
 def run_job(job: Job, folder: str, threads: int) -> dict:
     """Run one job into ``folder`` (skipped when finished); its summary row. Never raises:
     a failure is the row's status and error line."""
-    import torch
-
-    torch.set_num_threads(max(1, threads))
+    use_threads(threads)
     folder = Path(folder)
     try:
         metrics = _finished(folder, job.settings)
