@@ -37,8 +37,13 @@ demo: $(STAMP)
 demo-sar: $(STAMP)
 	$(BIN)/rfsdf demo --radar sar-77g --out rfsdf-demo-sar
 
+# One pytest worker a core (pytest-xdist), each at one thread (RFSDF_TEST_THREADS=N: N): numba's
+# and OpenMP's pools would otherwise take every core in every worker, and their waiting threads
+# spin. The files with a long module fixture go whole to one worker (tests/conftest.py).
+TEST_THREADS := $(or $(RFSDF_TEST_THREADS),1)
 test: $(STAMP) $(BROWSER)
-	$(BIN)/python -m pytest
+	NUMBA_NUM_THREADS=$(TEST_THREADS) OMP_NUM_THREADS=$(TEST_THREADS) OPENBLAS_NUM_THREADS=$(TEST_THREADS) \
+	  MKL_NUM_THREADS=$(TEST_THREADS) $(BIN)/python -m pytest -n auto
 
 # The documentation site (MkDocs, Material theme) -> site/; a warning fails the build. The
 # test suite builds it too (tests/test_docs.py).

@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from rfsdf.geometry import Grid
+from rfsdf.parallel import use_threads
 from rfsdf.radar import (
     Acquisition, Measurements, SensingOperator, matched_filter, write_image, write_measurements,
 )
@@ -15,12 +16,34 @@ SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
 def pytest_configure(config):
-    """RFSDF_TEST_THREADS=N runs the suite with N torch threads (torch clamps OMP_NUM_THREADS
-    to the core count, so 4 threads on a 2-core machine need this): a verdict must not depend
+    """RFSDF_TEST_THREADS=N runs the suite with N torch and numba threads (torch clamps
+    OMP_NUM_THREADS to the core count, so 4 threads on a 2-core machine need this; numba's
+    count is at most NUMBA_NUM_THREADS, which `make test` sets to N): a verdict must not depend
     on it (docs/guide/reproducibility.md)."""
     threads = os.environ.get("RFSDF_TEST_THREADS")
     if threads:
-        torch.set_num_threads(int(threads))
+        use_threads(int(threads))
+
+
+# The files whose module fixtures run a long job once (the quick demo, every study, the docs
+# site, the two balls' fit): under pytest-xdist (`make test`) each goes whole to one worker, so
+# the job runs once; every other test goes to whichever worker is free.
+LONG_JOB_FILES = {"test_demo.py", "test_studies.py", "test_docs.py", "test_material_fit.py"}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """`--dist load` (what `-n` gives) with LONG_JOB_FILES as units; any other --dist as asked."""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Scheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            file = nodeid.split("::", 1)[0]
+            return file if Path(file).name in LONG_JOB_FILES else nodeid
+
+    return Scheduling(config, log)
 
 
 def pytest_report_header(config):
