@@ -320,13 +320,16 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data):
 @pytest.mark.parametrize("smoothing_m, stays", [(None, True), (0.006, False)])
 def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_path, smoothing_m, stays):
     """The converged renderer's loss has its minimum at the truth, and its own gradient finds
-    it: a field regressed onto the true ball, fitted for 40 steps at the default learning
+    it: a field regressed onto the true ball, fitted for 100 steps at the default learning
     rate from the first step with its metal and the radar's gain known (only f free), ends
-    within 0.1 mm of the seen surface on average and no rougher than it started (measured:
-    mean 0.13 -> -0.08 mm, rms 0.14 -> 0.11). With the point sampler's 6 mm mean of the
-    surface velocity the same fit roughens it to 0.46 mm rms: the mean keeps a facet's
+    within 0.05 mm of the seen surface on average and smoother than it started. Measured
+    (mean, rms in mm, train seeds 0-3): from 0.13-0.19 / 0.14-0.22 it overshoots inward to
+    -0.10 to -0.13 by step 25 and settles at -0.04 to 0.00 / 0.04-0.09 by step 75, at 1, 2
+    and 4 threads; stopped at 40 steps, while it still recovers, it ends at -0.02 to -0.12,
+    the count of threads deciding. With the point sampler's 6 mm mean of the
+    surface velocity the same fit roughens it to 0.39-0.89 mm rms: the mean keeps a facet's
     vertices from moving apart, so the tilt the data ask for cannot reach the surface, and
-    what does reach it is the wrong shape (0.36 mm of drift in 30 steps from another start)."""
+    what does reach it is the wrong shape."""
     from rfsdf.radar.coverage import observed_mask
     from rfsdf.radar.simulate import SIMULATED_GAIN
     from rfsdf.studies.basin import regressed_field
@@ -338,7 +341,7 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
         "init": {"method": "sphere"},
         "render": {"element_step": 1, "smoothing_m": smoothing_m},
         "sampling": {"data_batch": 1024},
-        "train": {"steps": 40, "checkpoint_every": 40, "geometry_delay": 0.0,
+        "train": {"steps": 100, "checkpoint_every": 100, "geometry_delay": 0.0,
                   "device": "cpu"}})
     problem = Problem(data, Grid.from_voxel(scene.lower_m, scene.upper_m, 0.0075), gain=SIMULATED_GAIN,
                       known_materials=metal)
@@ -349,7 +352,7 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
     fit = Trainer(problem, config, tmp_path / "run", start=start.state_dict()).fit()
     after = surface_offset_mm(fit.field.sdf, surface)
     assert abs(before[0]) < 0.2 and before[1] < 0.3, before  # the start: the regression's own error
-    held = abs(after[0]) < 0.1 and after[1] < before[1] + 0.05
+    held = abs(after[0]) < 0.05 and after[1] < before[1]
     assert held == stays, (before, after)
 
 
