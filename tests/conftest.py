@@ -1,5 +1,6 @@
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -48,6 +49,14 @@ def pytest_xdist_make_scheduler(config, log):
 
 def pytest_report_header(config):
     return f"torch threads: {torch.get_num_threads()}"
+
+
+@pytest.fixture(scope="session")
+def tool_environment() -> dict:
+    """The environment a test runs a command in: this Python's ``rfsdf``, ``python`` and
+    ``mkdocs`` first on the PATH, MkDocs' notice of its next major version off."""
+    bin_dir = str(Path(sys.executable).parent)
+    return {**os.environ, "PATH": bin_dir + os.pathsep + os.environ.get("PATH", ""), "NO_MKDOCS_2_WARNING": "1"}
 
 
 @pytest.fixture
