@@ -8,7 +8,7 @@ import torch
 import trimesh
 
 from rfsdf.errors import RfsdfError
-from rfsdf.geometry import MeshSDF
+from rfsdf.geometry import Grid, MeshSDF
 from rfsdf.scene import Scene, load_scene, scene_presets
 from rfsdf.scene_model import load_scene_model
 from rfsdf.scene_spec import SceneSpec
@@ -28,15 +28,19 @@ BENCHMARK_SCENES = sorted((Path(__file__).parents[1] / "benchmarks" / "scenes").
 @pytest.mark.parametrize("path", BENCHMARK_SCENES, ids=lambda path: path.stem)
 def test_every_benchmark_scene_loads_with_its_objects_in_its_bounds(path):
     """A benchmark's scene file (or scene model, at its start) loads, and each object reaches into
-    the bounds on a 64-voxel grid (finer than the load's own check, ``Scene._near_points`` at 24):
-    a typo, or a transform that turns an object about the origin out of the scene, shows here and
-    not only when a benchmark runs."""
+    the bounds: some point of a 64-voxel grid of them (finer than the load's own check at 24) lies
+    inside it or within a voxel diagonal of its surface. A typo, or a transform that turns an
+    object about the origin out of the scene, shows here and not only when a benchmark runs."""
     if path.stem.endswith("-model"):  # a scene model: its scene at the start
         model = load_scene_model(path)
         scene = Scene(model.spec, model.base_dir)
     else:
         scene = load_scene(path)
-    assert all(scene._near_points(obj, 64).numel() for obj in scene.objects), path.name
+    grid = Grid.from_voxel(scene.lower_m, scene.upper_m, float(scene.extent_m.max()) / 64)
+    points, reach = grid.points(dtype=torch.float64), math.hypot(*grid.voxel_m)
+    with torch.no_grad():
+        outside = [obj.name for obj in scene.objects if not (obj.sdf(points) < reach).any()]
+    assert not outside, f"{path.name}: outside the bounds: {outside}"
 
 
 def test_sphere_scene_surface_sampling_is_exact():
