@@ -324,12 +324,12 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
     rate from the first step with its metal and the radar's gain known (only f free), ends
     within 0.05 mm of the seen surface on average and smoother than it started. Measured
     (mean / rms in mm; train seeds 0-3 at 4 threads, 0 and 2 at 1, 0 at 2): from 0.08-0.19
-    off (either side) / 0.11-0.22 it overshoots inward, to -0.10 to -0.15 within 25 steps, and settles at -0.04
-    to 0.00 / 0.04-0.09 by step 75; stopped at 40 steps, still recovering, it ended at -0.02
-    to -0.12, and the count of threads decided the verdict. With the point sampler's 6 mm mean of the
-    surface velocity the same fit roughens it to 0.39-0.89 mm rms: the mean keeps a facet's
-    vertices from moving apart, so the tilt the data ask for cannot reach the surface, and
-    what does reach it is the wrong shape."""
+    off (either side) / 0.11-0.22 it overshoots inward, to -0.10 to -0.15 within 25 steps,
+    and settles at -0.04 to 0.00 / 0.04-0.09 by step 75; stopped at 40 steps, still
+    recovering, it ended at -0.02 to -0.12, and the count of threads decided the verdict.
+    With the point sampler's 6 mm mean of the surface velocity the same fit roughens it to
+    0.39-0.89 mm rms: the mean keeps a facet's vertices from moving apart, so the tilt the
+    data ask for cannot reach the surface, and what does reach it is the wrong shape."""
     from rfsdf.radar.coverage import observed_mask
     from rfsdf.radar.simulate import SIMULATED_GAIN
     from rfsdf.studies.basin import regressed_field
