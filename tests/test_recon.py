@@ -317,8 +317,8 @@ def test_a_tiny_fit_recovers_a_dilated_sphere(sphere_data):
     assert np.median(start - end) > wavelength / 4, radii
 
 
-@pytest.mark.parametrize("smoothing_m, stays", [(None, True), (0.006, False)])
-def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_path, smoothing_m, stays):
+@pytest.mark.parametrize("smoothing_m, steps, stays", [(None, 100, True), (0.006, 40, False)])
+def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_path, smoothing_m, steps, stays):
     """The converged renderer's loss has its minimum at the truth, and its own gradient finds
     it: a field regressed onto the true ball, fitted for 100 steps at the default learning
     rate from the first step with its metal and the radar's gain known (only f free), ends
@@ -327,9 +327,10 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
     off (either side) / 0.11-0.22 it overshoots inward, to -0.10 to -0.15 within 25 steps,
     and settles at -0.04 to 0.00 / 0.04-0.09 by step 75; stopped at 40 steps, still
     recovering, it ended at -0.02 to -0.12, and the count of threads decided the verdict.
-    With the point sampler's 6 mm mean of the surface velocity the same fit roughens it to
-    0.39-0.89 mm rms: the mean keeps a facet's vertices from moving apart, so the tilt the
-    data ask for cannot reach the surface, and what does reach it is the wrong shape."""
+    With the point sampler's 6 mm mean of the surface velocity the same fit roughens it, to
+    0.46 mm rms in 40 steps (0.39-0.89 in 100): the mean keeps a facet's vertices from
+    moving apart, so the tilt the data ask for cannot reach the surface, and what does reach
+    it is the wrong shape."""
     from rfsdf.radar.coverage import observed_mask
     from rfsdf.radar.simulate import SIMULATED_GAIN
     from rfsdf.studies.basin import regressed_field
@@ -341,7 +342,7 @@ def test_started_on_the_true_ball_the_facet_fit_stays_on_it(sphere_data, tmp_pat
         "init": {"method": "sphere"},
         "render": {"element_step": 1, "smoothing_m": smoothing_m},
         "sampling": {"data_batch": 1024},
-        "train": {"steps": 100, "checkpoint_every": 100, "geometry_delay": 0.0,
+        "train": {"steps": steps, "checkpoint_every": steps, "geometry_delay": 0.0,
                   "device": "cpu"}})
     problem = Problem(data, Grid.from_voxel(scene.lower_m, scene.upper_m, 0.0075), gain=SIMULATED_GAIN,
                       known_materials=metal)
