@@ -267,17 +267,29 @@ def test_a_bridges_peaks_are_the_ones_the_fit_does_not_hold():
     assert not bridged_peaks([near, missed], points).any() and len(bridged_peaks([bridge], points[:0])) == 0
 
 
+def _brick_and_ball():
+    """Larder's glass ball and concrete brick, 8.5 mm apart (a sphere and a box, f [m] of float64
+    points [m]), and their warm start (float32 points): both swollen by 1 mm and joined through a
+    neck 3 mm deep, the brick 5.5 mm deep (larder's seed 1: 6.6 mm over 4.0)."""
+    axis = [0.0015] * 2  # y, z on the labelling grid's centres, which sample the neck's depth along it
+    ball, block = geo.Sphere(0.014, [-0.0165, *axis]), geo.Box([0.0045, 0.025, 0.014], [0.0105, *axis])
+    neck = geo.Capsule([-0.0165, *axis], [0.0105, *axis], 0.002)
+
+    def warm(p: torch.Tensor) -> torch.Tensor:
+        swollen = torch.stack([shape(p.double()) for shape in (ball, block, neck)]).min(0).values - 0.001
+        return swollen.to(p.dtype)
+
+    return ball, block, warm
+
+
 def test_a_ball_and_a_box_the_warm_start_joined_are_split_and_read_apart():
-    """Larder's concrete brick and glass ball: a box and a ball 9 mm apart that the warm start holds
-    as one piece, swollen by a millimetre and joined through a 3.5 mm neck, which no one primitive
-    explains. Split at the neck, each part holds its own object's peaks and is read as its own
-    primitive, the ball on its peaks; the piece's label gives way to the parts'
-    (their voxels the piece's). A fit that explains its piece, and a piece of one maximum, stay whole."""
-    ball, block = geo.Sphere(0.014, [-0.015, 0.0, 0.0]), geo.Box([0.012, 0.025, 0.014], [0.02, 0.0, 0.0])
-    neck = geo.Capsule([-0.015, 0.0, 0.0], [0.02, 0.0, 0.0], 0.0025)
+    """Larder's concrete brick and glass ball, which the warm start holds as one piece (:func:`_brick_and_ball`,
+    the brick only 2.5 mm deeper than the neck) that no one primitive explains. Split at the neck, each part
+    holds its own object's peaks and is read as its own primitive, the ball on its peaks; the piece's label
+    gives way to the parts' (their voxels the piece's). A fit that explains its piece, and a piece of one
+    maximum, stay whole."""
+    ball, block, warm = _brick_and_ball()
     truth = lambda p: torch.minimum(ball(p), block(p))  # noqa: E731
-    warm = lambda p: (torch.stack([shape(p.double()) for shape in (ball, block, neck)]).min(0).values  # noqa: E731
-                      - 0.001).to(p.dtype)
     views = torch.tensor(VIEWS, dtype=torch.float64)
     peaks, towards = _seen_from(truth, views / views.norm(dim=1, keepdim=True), count=400)
     on_ball = ball(peaks).abs() < 1e-6
@@ -300,7 +312,34 @@ def test_a_ball_and_a_box_the_warm_start_joined_are_split_and_read_apart():
     ball_labels, ball_grid, (ball_piece,) = fragments(alone, [-0.06] * 3, [0.06] * 3, peaks[on_ball])
     same, parts = split(ball_piece, alone, ball_labels, ball_grid)
     assert same is ball_labels and parts == []
-    assert SPLIT_DEPTH_M < 0.0115  # the ball's depth over the neck's
+    assert SPLIT_DEPTH_M < 0.0025  # the brick's depth over the neck's
+
+
+def test_a_cut_stands_only_where_a_part_is_near_its_peaks(monkeypatch):
+    """The brick and ball's piece (:func:`_brick_and_ball`) cut at its neck stays whole where each part's
+    primitive is only nearer its peaks than the ragged warm surface (counter's concrete box, a thin piece cut
+    at a dent: a box 1.0 mm off its part's peaks, 0.50 of them within 1 mm), and is cut where one part's is
+    near them (the acceptance's median and share)."""
+    ball, block, warm = _brick_and_ball()
+    peaks = torch.cat([_on(ball, 400, seed=3)[:60], _on(block, 1000, seed=4)[:60]])
+    labels, grid, (piece,) = fragments(warm, [-0.06] * 3, [0.06] * 3, peaks)
+    primitive = FramedPrimitive("sphere", [0.0] * 3, [0.0, 0.0, 1e-6], [0.01])
+    whole = FragmentFit(piece, primitive, math.inf, 2e-3, 0.3, 0.0)
+    free = torch.zeros(0, 3, dtype=torch.float64)
+
+    def fitted(median_m: float, within: float):
+        def fit(part: Fragment, _free) -> FragmentFit:
+            return FragmentFit(replace(part, warm_median_m=1.5e-3), primitive, 0.0, median_m, within, 0.0)
+        return fit
+
+    nearer = fitted(ACCEPT_BETTER_M - 1e-5, 0.5)
+    assert nearer(piece, free).explains and not nearer(piece, free).near
+    monkeypatch.setattr(object_primitives, "explain_fragment", nearer)
+    same, (kept,) = explain_split([whole], warm, labels, grid, free)
+    assert same is labels and kept is whole
+    monkeypatch.setattr(object_primitives, "explain_fragment", fitted(ACCEPT_MEDIAN_M / 2, ACCEPT_WITHIN))
+    cut, parts = explain_split([whole], warm, labels, grid, free)
+    assert len(parts) == 2 and all(part.near for part in parts) and (cut != labels).any()
 
 
 def test_a_box_seen_on_its_two_ends_off_each_other_is_read_along_its_faces():

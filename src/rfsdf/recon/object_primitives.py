@@ -31,7 +31,8 @@ start's own: a better account of them than the surface it replaces), has more pe
 primitive has parameters (``MIN_PEAKS``) and hardly carves the lines of sight (fewer than
 ``ACCEPT_CARVED`` of the free-space samples near it more than 1 mm inside). A fragment no primitive
 explains may be two objects the warm start joined through a neck: it is split where its interior
-narrows (the watershed of its depth) and each part fitted alone. Elsewhere (an object no primitive
+narrows (the watershed of its depth) and each part fitted alone, the cut kept where one part's
+primitive stands near its peaks (the acceptance's median and share). Elsewhere (an object no primitive
 is) the warm start stays. The views often see one object as several fragments (a torus's
 arcs, a box's faces): fragments whose surfaces come within ``JOIN_REACH_M`` of each other are
 fitted again as one, and a primitive that explains them all stands for their own fits; so are two
@@ -130,8 +131,15 @@ BRIDGE_MIN_PEAKS, BRIDGE_MEDIAN_M, BRIDGE_WITHIN = 50, 1.5e-3, 0.4
 # brick and glass ball, 9 mm apart, are one piece of 222 peaks, a box 1.66 mm off them. Such a piece is
 # split where its interior narrows, the watershed of its depth (-f) from the depths' maxima that stand
 # SPLIT_DEPTH_M above the saddle between them (h-maxima), and each part with peaks fitted alone; a part
-# a primitive explains replaces that part, the rest stays the warm start
-SPLIT_DEPTH_M = 3e-3
+# a primitive explains replaces that part, the rest stays the warm start. The cut stands only where one
+# part's primitive is near its peaks (the acceptance's median and share, not merely nearer than its warm
+# start): a primitive fitted to a part of one object is nearer than the ragged warm surface the cut leaves.
+# Larder's seed-1 warm start holds the brick 6.6 mm deep over a 4.0 mm neck to the ball (2.6 mm): at 2 mm
+# the ball's part is a sphere 0.21 mm off its 80 peaks (0.88 within 1 mm); counter's concrete box, a thin
+# piece 3.4-4.4 mm deep, is cut at 2 mm into parts whose best, a box 1.0 mm off its peaks (0.50), is only
+# nearer, and taken it moved counter's fit 1.16 -> 1.32 mm observed. Every cut at 3 mm on the nine scenes'
+# seed-0 warm starts has a near part (docs/results/demo-quality.md, "A shallower neck")
+SPLIT_DEPTH_M = 2e-3
 OWNER_REACH_M = 0.012  # a peak or surface point belongs to a fragment within this [m]
 HUBER_M = 1e-3  # the knee of the Huber loss on f at the points [m]
 SURFACE_WEIGHT = 0.1
@@ -343,11 +351,16 @@ class FragmentFit:
     accept_within: float = ACCEPT_WITHIN  # the share within 1 mm it holds it to (a bridge's: BRIDGE_WITHIN)
 
     @property
+    def near(self) -> bool:
+        """Whether its peaks stand within its acceptance: their median under ``accept_median_m`` and
+        ``accept_within`` of them within 1 mm."""
+        return self.peaks_median_m < self.accept_median_m and self.peaks_within >= self.accept_within
+
+    @property
     def explains(self) -> bool:
         """Whether the primitive replaces its fragment (the module docstring's rule)."""
-        near = self.peaks_median_m < self.accept_median_m and self.peaks_within >= self.accept_within
         nearer = self.peaks_median_m < min(self.fragment.warm_median_m, ACCEPT_BETTER_M)
-        return (near or nearer) and self.carved < ACCEPT_CARVED and len(self.fragment.peaks) >= MIN_PEAKS
+        return (self.near or nearer) and self.carved < ACCEPT_CARVED and len(self.fragment.peaks) >= MIN_PEAKS
 
     @property
     def bridged(self) -> bool:
@@ -625,14 +638,15 @@ def explain_split(fits: list[FragmentFit], sdf, labels: np.ndarray, grid: Grid,
                   free: torch.Tensor) -> tuple[np.ndarray, list[FragmentFit]]:
     """``fits`` with each of one label whose primitive does not explain it :func:`split` (on
     ``labels``' ``grid``, of ``sdf``) and its parts with peaks fitted alone (:func:`explain_fragment`
-    with ``free``), where a primitive explains one of them; and ``labels`` with those parts."""
+    with ``free``), where a primitive explains one of them and stands :attr:`~FragmentFit.near` its
+    peaks (the module docstring's split); and ``labels`` with those parts."""
     kept = []
     for fit in fits:
         parts = []
         if not fit.explains and len(fit.fragment.labels) == 1 and len(fit.fragment.peaks) >= 2 * MIN_PEAKS:
             cut, pieces = split(fit.fragment, sdf, labels, grid)
             parts = [explain_fragment(piece, free) for piece in pieces if len(piece.peaks)]
-        if any(part.explains for part in parts):
+        if any(part.explains and part.near for part in parts):
             labels, kept = cut, kept + parts
         else:
             kept.append(fit)
