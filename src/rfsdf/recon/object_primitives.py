@@ -39,7 +39,9 @@ fitted again as one, and a primitive that explains them all stands for their own
 farther ones (or near groups no primitive explained) with nothing the views saw between them and
 enough peaks each (``LINK_MIN_PEAKS``: the two ends of a capsule whose body no view sees). Such a
 bridge with many peaks a side is held to a looser median (``BRIDGE_MEDIAN_M``): where the views see
-a box only at its rims and edges, their returns stand a millimetre or more off any surface. A
+a box only at its rims and edges, their returns stand a millimetre or more off any surface. So is a
+near group no primitive explains fitted again less its members a primitive stands near (an object
+beside it), where each member left has as many peaks. A
 fragment of fewer than ``MIN_PEAKS`` peaks, and those faint, is no surface the views place: a glint's
 sidelobe or a double bounce the detection kept (the demo's seed-1 floater); a few bright ones are a
 surface seen at a few places (larder's thin panel, ``PLACED_AMPLITUDE``). The new target is the warm start with
@@ -125,7 +127,9 @@ LINK_CLEAR_M, LINK_MIN_PEAKS = 3e-3, 20
 # bridged_peaks); workbench's metal cylinder as a box 1.55 (0.37), which taken made its fit worse
 # (3.44 -> 3.60 mm); every pair of two objects with 50 peaks a side 2.16 mm or more, 0.33 or fewer
 # within; one of 30 and 27 peaks, 1.26 (workshop's corner and bottle; docs/results/demo-quality.md,
-# "Bridges of rim returns")
+# "Bridges of rim returns"). So is a near group less its members a primitive stands near: larder's
+# brick, two pieces beside its glass ball, one box 1.04-1.10 mm off their 194 peaks, the true box 1.11
+# (larder 37 / 21 / 37 -> 34 / 26 / 40 % over seeds 0-2; "A near group less its near members")
 BRIDGE_MIN_PEAKS, BRIDGE_MEDIAN_M, BRIDGE_WITHIN = 50, 1.5e-3, 0.4
 # a piece no primitive explains may be two objects the warm start joined through a neck: larder's concrete
 # brick and glass ball, 9 mm apart, are one piece of 222 peaks, a box 1.66 mm off them. Such a piece is
@@ -582,10 +586,20 @@ def near_groups(pieces: list[Fragment], reach_m: float = JOIN_REACH_M) -> list[l
 def explain_together(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[FragmentFit]:
     """``fits`` with each :func:`near_groups` of their fragments fitted as one (:func:`joined`
     over ``sdf``, :func:`explain_fragment` with the free-space samples ``free``): where one
-    primitive explains the group, its fit stands for the members'."""
-    groups = near_groups([fit.fragment for fit in fits])
-    together = [explain_fragment(joined([fits[i].fragment for i in group], sdf), free) for group in groups]
-    taken = [(fit, group) for fit, group in zip(together, groups) if fit.explains]
+    primitive explains the group, its fit stands for the members'. Where none does, the group less
+    its members already :attr:`~FragmentFit.near` their peaks (objects of their own beside it) is
+    fitted again, held to a bridge's acceptance where each member left has ``BRIDGE_MIN_PEAKS`` peaks."""
+    taken = []
+    for group in near_groups([fit.fragment for fit in fits]):
+        fit = explain_fragment(joined([fits[i].fragment for i in group], sdf), free)
+        rest = [i for i in group if not (fits[i].explains and fits[i].near)]
+        if not fit.explains and 2 <= len(rest) < len(group):
+            group = rest
+            fit = explain_fragment(joined([fits[i].fragment for i in group], sdf), free)
+            if min(len(fits[i].fragment.peaks) for i in group) >= BRIDGE_MIN_PEAKS:
+                fit = _as_bridge(fit)
+        if fit.explains:
+            taken.append((fit, group))
     replaced = {i for _, group in taken for i in group}
     return [fit for i, fit in enumerate(fits) if i not in replaced] + [fit for fit, _ in taken]
 
@@ -609,6 +623,11 @@ def linked_pairs(pieces: list[Fragment], free: torch.Tensor) -> list[tuple[int, 
     return [(i, j) for _, i, j in sorted(pairs)]
 
 
+def _as_bridge(fit: FragmentFit) -> FragmentFit:
+    """``fit`` held to a bridge's acceptance (``BRIDGE_MEDIAN_M``, ``BRIDGE_WITHIN``)."""
+    return replace(fit, accept_median_m=max(fit.accept_median_m, BRIDGE_MEDIAN_M), accept_within=BRIDGE_WITHIN)
+
+
 def explain_linked(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[FragmentFit]:
     """``fits`` with each of :func:`linked_pairs` of their units (each :func:`near_groups` of their
     fragments joined, every other fragment alone; with ``free``), nearest first and each unit in one
@@ -626,7 +645,7 @@ def explain_linked(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[Fra
             continue
         fit = explain_fragment(joined([sides[a], sides[b]], sdf), free)
         if min(len(sides[a].peaks), len(sides[b].peaks)) >= BRIDGE_MIN_PEAKS:
-            fit = replace(fit, accept_median_m=max(fit.accept_median_m, BRIDGE_MEDIAN_M), accept_within=BRIDGE_WITHIN)
+            fit = _as_bridge(fit)
         if fit.explains:
             used |= {a, b}
             together.append(fit)
