@@ -249,34 +249,6 @@ def test_a_box_seen_at_its_rims_is_bridged_across_its_unseen_middle(monkeypatch)
     assert [fit.fragment.labels for fit in explain_linked(unfitted, truth, free)] == [(1,), (2,), (3,), (4,)]
 
 
-def test_a_near_group_no_primitive_explains_is_fitted_again_less_its_members_read_near(monkeypatch):
-    """Larder's brick, two pieces of the warm start beside its glass ball's (:func:`_brick_and_ball`),
-    all three one near group. No primitive explains the three, nor the brick's two by the default's
-    acceptance (its true box stands 1.1 mm from its rim returns); without the ball, read near, the
-    brick's two are fitted again and, with ``BRIDGE_MIN_PEAKS`` peaks each, held to a bridge's
-    acceptance: one box stands for both, the ball's fit kept. With fewer peaks a side nothing is replaced."""
-    ball, block, _ = _brick_and_ball()
-    on_ball, on_block = _on(ball, 400, seed=3)[:60], _on(block, 2000, seed=4)
-    halves = [on_block[on_block[:, 1] > 0][:60], on_block[on_block[:, 1] < 0][:60]]
-    pieces = [Fragment((label,), points, points) for label, points in enumerate([on_ball, *halves], start=1)]
-    assert near_groups(pieces) == [[0, 1, 2]]
-    sphere = FramedPrimitive("sphere", [-0.0165, 0.0015, 0.0015], [1e-6] * 3, [0.014])
-    box = FramedPrimitive("box", [0.0105, 0.0015, 0.0015], [1e-6] * 3, [0.0045, 0.025, 0.014])
-    ball_fit = FragmentFit(pieces[0], sphere, 0.0, 2e-4, 0.9, 0.0)
-    halves_fits = [FragmentFit(piece, box, 0.0, 1.2e-3, 0.45, 0.0) for piece in pieces[1:]]
-
-    def fitted(fragment: Fragment, _free) -> FragmentFit:  # the box 1.1 mm off the brick's rim returns alone
-        with_ball = bool((ball(fragment.peaks).abs() < 1e-6).any())
-        return FragmentFit(fragment, box, 0.0, 2.1e-3 if with_ball else 1.1e-3, 0.27 if with_ball else 0.48, 0.0)
-
-    monkeypatch.setattr(object_primitives, "explain_fragment", fitted)
-    free = torch.zeros(0, 3, dtype=torch.float64)
-    kept, brick = explain_together([ball_fit, *halves_fits], block, free)  # no caps: the sdf is not read
-    assert kept is ball_fit and sorted(brick.fragment.labels) == [2, 3] and brick.explains and brick.bridged
-    monkeypatch.setattr(object_primitives, "BRIDGE_MIN_PEAKS", len(halves[0]) + 1)
-    assert explain_together([ball_fit, *halves_fits], block, free) == [ball_fit, *halves_fits]
-
-
 def test_a_bridges_peaks_are_the_ones_the_fit_does_not_hold():
     """Of three fits, one explains its peaks by the default's acceptance, one only as a bridge (its
     median over ACCEPT_MEDIAN_M, its acceptance loosened) and one not at all: only the bridge's peaks
@@ -368,6 +340,34 @@ def test_a_cut_stands_only_where_a_part_is_near_its_peaks(monkeypatch):
     monkeypatch.setattr(object_primitives, "explain_fragment", fitted(ACCEPT_MEDIAN_M / 2, ACCEPT_WITHIN))
     cut, parts = explain_split([whole], warm, labels, grid, free)
     assert len(parts) == 2 and all(part.near for part in parts) and (cut != labels).any()
+
+
+def test_a_near_group_no_primitive_explains_is_fitted_again_less_its_members_read_near(monkeypatch):
+    """Larder's brick, two pieces of the warm start beside its glass ball's (:func:`_brick_and_ball`),
+    all three one near group. No primitive explains the three, nor the brick's two by the default's
+    acceptance (its true box stands 1.1 mm from its rim returns); without the ball, read near, the
+    brick's two are fitted again and, with ``BRIDGE_MIN_PEAKS`` peaks each, held to a bridge's
+    acceptance: one box stands for both, the ball's fit kept. With fewer peaks a side nothing is replaced."""
+    ball, block, _ = _brick_and_ball()
+    on_ball, on_block = _on(ball, 400, seed=3)[:60], _on(block, 2000, seed=4)
+    halves = [on_block[on_block[:, 1] > 0][:60], on_block[on_block[:, 1] < 0][:60]]
+    pieces = [Fragment((label,), points, points) for label, points in enumerate([on_ball, *halves], start=1)]
+    assert near_groups(pieces) == [[0, 1, 2]]
+    sphere = FramedPrimitive("sphere", [-0.0165, 0.0015, 0.0015], [1e-6] * 3, [0.014])
+    box = FramedPrimitive("box", [0.0105, 0.0015, 0.0015], [1e-6] * 3, [0.0045, 0.025, 0.014])
+    ball_fit = FragmentFit(pieces[0], sphere, 0.0, 2e-4, 0.9, 0.0)
+    halves_fits = [FragmentFit(piece, box, 0.0, 1.2e-3, 0.45, 0.0) for piece in pieces[1:]]
+
+    def fitted(fragment: Fragment, _free) -> FragmentFit:  # the box 1.1 mm off the brick's rim returns alone
+        with_ball = bool((ball(fragment.peaks).abs() < 1e-6).any())
+        return FragmentFit(fragment, box, 0.0, 2.1e-3 if with_ball else 1.1e-3, 0.27 if with_ball else 0.48, 0.0)
+
+    monkeypatch.setattr(object_primitives, "explain_fragment", fitted)
+    free = torch.zeros(0, 3, dtype=torch.float64)
+    kept, brick = explain_together([ball_fit, *halves_fits], block, free)  # no caps: the sdf is not read
+    assert kept is ball_fit and sorted(brick.fragment.labels) == [2, 3] and brick.explains and brick.bridged
+    monkeypatch.setattr(object_primitives, "BRIDGE_MIN_PEAKS", len(halves[0]) + 1)
+    assert explain_together([ball_fit, *halves_fits], block, free) == [ball_fit, *halves_fits]
 
 
 def test_a_box_seen_on_its_two_ends_off_each_other_is_read_along_its_faces():
