@@ -589,13 +589,15 @@ def explain_together(fits: list[FragmentFit], sdf, free: torch.Tensor) -> list[F
     primitive explains the group, its fit stands for the members'. Where none does, the group less
     its members already :attr:`~FragmentFit.near` their peaks (objects of their own beside it) is
     fitted again, held to a bridge's acceptance where each member left has ``BRIDGE_MIN_PEAKS`` peaks."""
+    def as_one(members: list[int]) -> FragmentFit:
+        return explain_fragment(joined([fits[i].fragment for i in members], sdf), free)
+
     taken = []
     for group in near_groups([fit.fragment for fit in fits]):
-        fit = explain_fragment(joined([fits[i].fragment for i in group], sdf), free)
+        fit = as_one(group)
         rest = [i for i in group if not (fits[i].explains and fits[i].near)]
         if not fit.explains and 2 <= len(rest) < len(group):
-            group = rest
-            fit = explain_fragment(joined([fits[i].fragment for i in group], sdf), free)
+            group, fit = rest, as_one(rest)
             if min(len(fits[i].fragment.peaks) for i in group) >= BRIDGE_MIN_PEAKS:
                 fit = _as_bridge(fit)
         if fit.explains:
